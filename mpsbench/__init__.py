@@ -1,0 +1,10 @@
+"""mpsbench: validation and benchmarking harness for MPS / WC-MPS particle solvers."""
+
+from importlib.metadata import PackageNotFoundError, version
+
+try:
+    __version__ = version("mpsbench")
+except PackageNotFoundError:  # running from a source tree that was not installed
+    __version__ = "0.0.0+unknown"
+
+__all__ = ["__version__"]

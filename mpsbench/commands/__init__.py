@@ -1,0 +1,1 @@
+"""Sub-commands of the ``mpsbench`` CLI, one module each (see :mod:`mpsbench.cli`)."""

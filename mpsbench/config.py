@@ -1,0 +1,219 @@
+"""Frozen, validated configuration dataclasses: models, physics, time stepping, boundaries.
+
+Every value is checked when the object is built; a bad value raises :class:`ConfigError` naming
+the field, the value and what is allowed.  Units are SI.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any, Literal
+
+from mpsbench.registry import UnknownNameError
+
+
+class ConfigError(ValueError):
+    """A configuration value is not allowed; the message names field, value and what is allowed."""
+
+
+def _fail(owner: str, name: str, value: Any, allowed: str) -> None:
+    raise ConfigError(f"{owner}.{name} = {value!r} is not allowed: {allowed}")
+
+
+def _positive(owner: str, name: str, value: Any, allow_zero: bool = False) -> None:
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if not ok or value < 0 or (value == 0 and not allow_zero):
+        _fail(owner, name, value, "a finite number " + (">= 0" if allow_zero else "> 0"))
+
+
+def _choice(owner: str, name: str, value: Any, choices: tuple[str, ...]) -> None:
+    if value not in choices:
+        _fail(owner, name, value, "one of " + ", ".join(repr(c) for c in choices))
+
+
+def _in_range(owner: str, name: str, value: Any, lo: float, hi: float) -> None:
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and lo <= value <= hi
+    if not ok:
+        _fail(owner, name, value, f"a number in [{lo}, {hi}]")
+
+
+def _registered(owner: str, name: str, value: Any, registry: Any) -> None:
+    try:
+        registry.entry(value)
+    except UnknownNameError:
+        _fail(owner, name, value, "one of " + ", ".join(registry.names()))
+
+
+@dataclass(frozen=True)
+class Models:
+    """Which MPS models a run uses.
+
+    ``re_ratio`` is r_e/l0 for number density, pressure gradient, collision and stabilization;
+    ``re_ratio_laplacian`` is r_e/l0 for the Laplacian (defaults to ``re_ratio``).
+    ``n0_from``: ``"initial"`` takes n0 and lambda at an interior particle of the initial
+    arrangement; ``"lattice"`` takes them from the ideal square lattice of spacing l0 (use it
+    when the initial arrangement is jittered).
+    """
+
+    weight: str = "wf2"
+    laplacian: str = "xu-jin"
+    gradient: str = "pgm1"
+    re_ratio: float = 2.1
+    re_ratio_laplacian: float | None = None
+    gradient_correction: bool = False
+    n0_from: Literal["initial", "lattice"] = "initial"
+
+    def __post_init__(self) -> None:
+        from mpsbench.kernels import WEIGHTS
+        from mpsbench.operators import GRADIENTS, LAPLACIANS
+
+        _registered("Models", "weight", self.weight, WEIGHTS)
+        _registered("Models", "laplacian", self.laplacian, LAPLACIANS)
+        _registered("Models", "gradient", self.gradient, GRADIENTS)
+        _in_range("Models", "re_ratio", self.re_ratio, 1.0, 10.0)
+        if self.re_ratio_laplacian is not None:
+            _in_range("Models", "re_ratio_laplacian", self.re_ratio_laplacian, 1.0, 10.0)
+        if self.gradient_correction and self.laplacian != "xu-jin":
+            _fail("Models", "gradient_correction", True, "only with laplacian 'xu-jin'")
+        _choice("Models", "n0_from", self.n0_from, ("initial", "lattice"))
+
+    @property
+    def re_lap_ratio(self) -> float:
+        return self.re_ratio if self.re_ratio_laplacian is None else self.re_ratio_laplacian
+
+
+@dataclass(frozen=True)
+class DiffusionPhysics:
+    """Scalar diffusion on fixed particles: d phi/dt = kappa lap(phi), forward Euler.
+
+    The scalar lives in ``Particles.fields[field_name]``; ``kappa`` in m^2/s.
+    """
+
+    kappa: float = 1.0
+    field_name: str = "phi"
+
+    kind = "diffusion"
+
+    def __post_init__(self) -> None:
+        _positive("DiffusionPhysics", "kappa", self.kappa)
+        if not self.field_name:
+            _fail("DiffusionPhysics", "field_name", self.field_name, "a non-empty string")
+
+
+@dataclass(frozen=True)
+class FlowPhysics:
+    """WC-MPS flow (method.md sections 4-5).
+
+    rho0 [kg/m^3], nu [m^2/s], gravity [m/s^2], c0 [m/s] (sound speed of the equation of state).
+    """
+
+    rho0: float = 1000.0
+    nu: float = 1.0e-6
+    gravity: tuple[float, float] = (0.0, -9.81)
+    c0: float = 10.0
+    eos: Literal["tait", "linear"] = "tait"
+    gamma: float = 7.0
+    clip_negative_pressure: bool = True
+    surface_beta: float = 0.97
+    collision: bool = False
+    collision_distance: float = 0.8  # alpha_c, fraction of l0
+    restitution: float = 0.2
+    stabilization: bool = False
+    alpha_s: float = 0.01
+    stabilization_walls: bool = True  # wall and dummy particles are neighbours in its sum
+    wall_velocity: Literal["prescribed", "mirror"] = "prescribed"
+
+    kind = "flow"
+
+    def __post_init__(self) -> None:
+        o = "FlowPhysics"
+        _positive(o, "rho0", self.rho0)
+        _positive(o, "nu", self.nu, allow_zero=True)
+        if len(self.gravity) != 2 or not all(math.isfinite(float(g)) for g in self.gravity):
+            _fail(o, "gravity", self.gravity, "a pair of finite numbers (gx, gy) in m/s^2")
+        _positive(o, "c0", self.c0)
+        _choice(o, "eos", self.eos, ("tait", "linear"))
+        _positive(o, "gamma", self.gamma)
+        _in_range(o, "surface_beta", self.surface_beta, 0.5, 1.0)
+        _in_range(o, "collision_distance", self.collision_distance, 0.0, 1.0)
+        _in_range(o, "restitution", self.restitution, 0.0, 1.0)
+        _in_range(o, "alpha_s", self.alpha_s, 0.0, 1.0)
+        _choice(o, "wall_velocity", self.wall_velocity, ("prescribed", "mirror"))
+
+
+@dataclass(frozen=True)
+class TimeStepping:
+    """dt = min(cfl l0 / (c0 + |u|max), c_nu / (nu * rho(L))) unless ``dt`` is fixed.
+
+    For flow, the viscous limit uses the Laplacian's largest eigenvalue estimate
+    rho(L) = max_i sum_j |c_ij| (method.md section 4), for diffusion kappa * rho(L).
+    ``c_nu`` is the fraction of the forward-Euler limit 2 / rho(L) used.
+    """
+
+    dt: float | None = None
+    cfl: float = 0.2
+    c_nu: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.dt is not None:
+            _positive("TimeStepping", "dt", self.dt)
+        _in_range("TimeStepping", "cfl", self.cfl, 1e-6, 1.0)
+        _in_range("TimeStepping", "c_nu", self.c_nu, 1e-6, 1.0)
+
+
+@dataclass(frozen=True)
+class Inflow:
+    """Particles enter with ``velocity`` through a straight inlet.
+
+    The inlet is the segment from ``start`` to ``end``; the reservoir holds ``layers`` rows of
+    inflow particles upstream of it (they carry ``velocity`` and count as boundary particles
+    until they cross the inlet line, then become fluid).  A new row is created upstream each
+    time the last one has advanced by l0.
+    """
+
+    start: tuple[float, float]
+    end: tuple[float, float]
+    velocity: tuple[float, float]
+    layers: int = 4
+
+    def __post_init__(self) -> None:
+        if self.layers < 1:
+            _fail("Inflow", "layers", self.layers, "an integer >= 1")
+        if math.hypot(*self.velocity) <= 0:
+            _fail("Inflow", "velocity", self.velocity, "a non-zero vector")
+
+
+@dataclass(frozen=True)
+class Region:
+    """Axis-aligned rectangle [lo, hi]; particles inside an outflow region are removed."""
+
+    lo: tuple[float, float]
+    hi: tuple[float, float]
+
+    def __post_init__(self) -> None:
+        if not (self.hi[0] > self.lo[0] and self.hi[1] > self.lo[1]):
+            _fail("Region", "hi", self.hi, f"greater than lo = {self.lo} on both axes")
+
+
+@dataclass(frozen=True)
+class WallMotion:
+    """Boundary particles with ``tag`` (in ``Particles.fields['wall_tag']``) move at ``velocity``."""
+
+    tag: int
+    velocity: tuple[float, float]
+
+
+def replace_validated(obj: Any, **changes: Any) -> Any:
+    """``dataclasses.replace`` that rejects unknown field names with the list of known ones."""
+    from dataclasses import replace
+
+    known = {f.name for f in fields(obj)}
+    unknown = sorted(set(changes) - known)
+    if unknown:
+        raise ConfigError(
+            f"{type(obj).__name__} has no field(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}"
+        )
+    return replace(obj, **changes)
+
+

@@ -1,0 +1,109 @@
+"""Weighting functions W(r, r_e) of MPS and their radial derivatives.
+
+Adding a weighting function is one subclass of :class:`WeightFunction` plus one
+``WEIGHTS.register`` call (or an entry point in the ``mpsbench.kernels`` group).
+All functions are vectorised over ``r`` and return 0 outside the support ``r > r_e``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from mpsbench.registry import Registry
+
+Array = NDArray[np.float64]
+
+
+class WeightFunction:
+    """Base class: override :meth:`_w`, :meth:`_dw`, :meth:`_d2w` for 0 < r <= r_e."""
+
+    name: str = ""
+    description: str = ""
+    source: str = ""
+
+    def w(self, r: ArrayLike, re: float) -> Array:
+        return self._masked(self._w, r, re)
+
+    def dw(self, r: ArrayLike, re: float) -> Array:
+        return self._masked(self._dw, r, re)
+
+    def d2w(self, r: ArrayLike, re: float) -> Array:
+        return self._masked(self._d2w, r, re)
+
+    def _masked(self, fn: Any, r: ArrayLike, re: float) -> Array:
+        r = np.asarray(r, dtype=float)
+        inside = r <= re
+        out = np.zeros_like(r)
+        out[inside] = fn(r[inside], float(re))
+        return out
+
+    def _w(self, r: Array, re: float) -> Array:
+        raise NotImplementedError
+
+    def _dw(self, r: Array, re: float) -> Array:
+        raise NotImplementedError
+
+    def _d2w(self, r: Array, re: float) -> Array:
+        raise NotImplementedError
+
+    def __repr__(self) -> str:
+        return f"<WeightFunction {self.name}>"
+
+
+class WF1(WeightFunction):
+    """W = r_e/r - 1: the original MPS weight, singular at r = 0."""
+
+    name = "wf1"
+    description = "W = r_e/r - 1 (original MPS weight; singular at r = 0)"
+    source = "Koshizuka & Oka 1996; Xu & Jin 2016 Eq. 2"
+
+    def _w(self, r: Array, re: float) -> Array:
+        return re / r - 1.0
+
+    def _dw(self, r: Array, re: float) -> Array:
+        return -re / r**2
+
+    def _d2w(self, r: Array, re: float) -> Array:
+        return 2.0 * re / r**3
+
+
+class WF2(WeightFunction):
+    """W = (1 - r/r_e)^3: smooth, finite at r = 0."""
+
+    name = "wf2"
+    description = "W = (1 - r/r_e)^3 (finite at r = 0)"
+    source = "Shakibaeinia & Jin 2010; Xu & Jin 2016 Eq. 3"
+
+    def _w(self, r: Array, re: float) -> Array:
+        return (1.0 - r / re) ** 3
+
+    def _dw(self, r: Array, re: float) -> Array:
+        return -(3.0 / re) * (1.0 - r / re) ** 2
+
+    def _d2w(self, r: Array, re: float) -> Array:
+        return (6.0 / re**2) * (1.0 - r / re)
+
+
+def _validate_weight(obj: Any) -> None:
+    inst = obj() if isinstance(obj, type) else obj
+    for attr in ("w", "dw", "d2w"):
+        if not callable(getattr(inst, attr, None)):
+            raise TypeError(f"weighting function has no callable {attr}()")
+
+
+WEIGHTS: Registry[WeightFunction] = Registry(
+    "weighting function", group="mpsbench.kernels", validate=_validate_weight
+)
+for _cls in (WF1, WF2):
+    WEIGHTS.register(_cls.name, _cls(), description=_cls.description, source=_cls.source)
+
+
+def get_weight(name_or_obj: str | WeightFunction) -> WeightFunction:
+    """Look a weighting function up by name (or pass an instance through)."""
+    if isinstance(name_or_obj, str):
+        obj: Any = WEIGHTS.get(name_or_obj)
+        return obj() if isinstance(obj, type) else obj  # type: ignore[no-any-return]
+    return name_or_obj

@@ -1,0 +1,1 @@
+"""Built-in solver backends (installed as ``mpsbench.solvers``), reached through the registry."""

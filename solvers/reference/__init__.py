@@ -1,0 +1,1 @@
+"""The reference backend (registry name ``reference``)."""

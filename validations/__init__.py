@@ -1,0 +1,1 @@
+"""Validation cases (installed as ``mpsbench.validations``), reached through the case registry."""
