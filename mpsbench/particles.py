@@ -3,6 +3,10 @@
 Units: SI throughout (m, m/s, Pa).  Kinds: fluid particles move; wall particles form the first
 boundary layer (they take part in pressure and in every operator); dummy particles sit behind the
 wall to complete the number density.  Wall and dummy particles carry the wall velocity in ``vel``.
+
+Boundary rows built by :func:`wall_layers` also carry ``wall_nx``, ``wall_ny`` (unit normal of the
+wall line, pointing into the fluid) and ``wall_dist`` (distance behind the wall line, > 0), which the
+``mirror`` wall-velocity treatment uses to reflect a boundary particle into the fluid.
 """
 
 from __future__ import annotations
@@ -18,8 +22,9 @@ FloatArray = NDArray[np.float64]
 
 class Kind(IntEnum):
     FLUID = 0
-    WALL = 1
-    DUMMY = 2
+    WALL = 1  # first boundary row: pressure from the EOS, in every operator
+    DUMMY = 2  # rows behind the wall: complete the number density, carry the wall velocity
+    INFLOW = 3  # reservoir rows upstream of an inlet: move at the inflow velocity, then turn fluid
 
 
 @dataclass(frozen=True)
@@ -211,8 +216,15 @@ def wall_layers(
             np.column_stack([x0 + (np.arange(nx) + 0.5) * l0, np.full(nx, y)]), kind
         )
         p.vel[:] = velocity
+        _set_wall_geometry(p, (0.0, -sign), (layer + 0.5) * l0)
         rows.append(p)
     return Particles.concat(rows)
+
+
+def _set_wall_geometry(p: Particles, normal: tuple[float, float], dist: float) -> None:
+    p.fields["wall_nx"] = np.full(p.n, normal[0])
+    p.fields["wall_ny"] = np.full(p.n, normal[1])
+    p.fields["wall_dist"] = np.full(p.n, dist)
 
 
 def vertical_wall_layers(
@@ -233,11 +245,11 @@ def vertical_wall_layers(
     for layer in range(n_wall + n_dummy):
         x = x_wall + sign * (layer + 0.5) * l0
         kind = Kind.WALL if layer < n_wall else Kind.DUMMY
-        cols.append(
-            Particles.from_positions(
-                np.column_stack([np.full(ny, x), y0 + (np.arange(ny) + 0.5) * l0]), kind
-            )
+        col = Particles.from_positions(
+            np.column_stack([np.full(ny, x), y0 + (np.arange(ny) + 0.5) * l0]), kind
         )
+        _set_wall_geometry(col, (-sign, 0.0), (layer + 0.5) * l0)
+        cols.append(col)
     return Particles.concat(cols)
 
 
