@@ -1,1 +1,5 @@
 """The reference backend (registry name ``reference``)."""
+
+from .solver import ReferenceSolver
+
+__all__ = ["ReferenceSolver"]
