@@ -1,0 +1,106 @@
+"""Write a case's output folder: results, tables, figures, checks and a plain-word report.
+
+Layout of a case folder::
+
+    results.csv, results.json   one row per run (common columns + parameters + metrics)
+    tables/<name>.csv|.md       the case's tables
+    figures/<name>.png          the case's figures
+    checks.json                 pass/fail of each of the case's checks
+    report.md                   findings in plain words, checks, tables, figure links
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from mpsbench.cases import Case, CheckResult
+from mpsbench.study import COMMON_COLUMNS, atomic_write_text, load_arrays
+
+
+def records_frame(records: list[dict[str, Any]], case: Case | None = None) -> pd.DataFrame:
+    """Records as a DataFrame with the common columns first, then parameters, then the rest."""
+    df = pd.DataFrame.from_records(records)
+    if df.empty:
+        return df
+    first = [c for c in COMMON_COLUMNS if c in df.columns]
+    params = [p.name for p in case.params if p.name in df.columns] if case else []
+    rest = [c for c in df.columns if c not in first and c not in params]
+    return df[first + params + rest]
+
+
+def markdown_table(df: pd.DataFrame, floatfmt: str = ".4g") -> str:
+    if df.empty:
+        return "_(no data)_\n"
+    return str(df.to_markdown(floatfmt=floatfmt)) + "\n"
+
+
+def write_case_outputs(case: Case, records: list[dict[str, Any]], outdir: str | Path) -> list[CheckResult]:
+    """Write results, tables, figures, checks and report.md for one case; return the checks."""
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    df = records_frame(records, case)
+    df.to_csv(outdir / "results.csv", index=False)
+    atomic_write_text(outdir / "results.json", json.dumps(records, indent=1, default=str))
+
+    tables = case.tables(records) if records else {}
+    tdir = outdir / "tables"
+    tdir.mkdir(exist_ok=True)
+    for name, table in tables.items():
+        table.to_csv(tdir / f"{name}.csv")
+        (tdir / f"{name}.md").write_text(markdown_table(table))
+
+    fdir = outdir / "figures"
+    fdir.mkdir(exist_ok=True)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    figures = case.figures(records, lambda rid: load_arrays(outdir, rid), fdir) if records else []
+
+    checks = case.checks(records) if records else []
+    atomic_write_text(
+        outdir / "checks.json",
+        json.dumps([{"name": c.name, "passed": c.passed, "detail": c.detail} for c in checks], indent=1),
+    )
+    (outdir / "report.md").write_text(render_report(case, records, checks, tables, figures, outdir))
+    return checks
+
+
+def check_lines(checks: list[CheckResult]) -> list[str]:
+    mark = {True: "PASS", False: "FAIL", None: "n/a "}
+    return [f"- **{mark[c.passed]}** {c.name}: {c.detail}" for c in checks]
+
+
+def render_report(
+    case: Case, records: list[dict[str, Any]], checks: list[CheckResult],
+    tables: dict[str, pd.DataFrame], figures: list[Path], outdir: Path,
+) -> str:
+    n = len(records)
+    by_status: dict[str, int] = {}
+    for r in records:
+        by_status[r.get("status", "?")] = by_status.get(r.get("status", "?"), 0) + 1
+    status = ", ".join(f"{v} {k}" for k, v in sorted(by_status.items()))
+    lines = [f"# {case.title or case.name}", "", case.description.strip(), ""]
+    tiers = sorted({str(r.get("tier")) for r in records})
+    solvers = sorted({str(r.get("solver")) for r in records})
+    lines += [f"{n} runs ({status}); tier {', '.join(tiers)}; solver {', '.join(solvers)}.", ""]
+    failed = [r for r in records if r.get("status") != "completed"]
+    if failed:
+        lines += ["Runs that did not complete:", ""]
+        lines += [f"- `{r['run_id']}`: {r.get('status')}: {r.get('reason', '')}" for r in failed[:20]]
+        lines.append("")
+    findings = case.findings(records) if records else ""
+    if findings:
+        lines += ["## Findings", "", findings.strip(), ""]
+    if checks:
+        lines += ["## Checks", "", *check_lines(checks), ""]
+    for name, table in tables.items():
+        lines += [f"## Table: {name}", "", markdown_table(table), f"(also `tables/{name}.csv`)", ""]
+    if figures:
+        lines += ["## Figures", ""]
+        lines += [f"![{f.stem}]({f.relative_to(outdir).as_posix()})" for f in figures]
+        lines.append("")
+    return "\n".join(lines)

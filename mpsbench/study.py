@@ -1,0 +1,304 @@
+"""Study machinery: expand a case's grid, run each parameter set once, keep one record per run.
+
+Output folder layout::
+
+    OUT/runs/<run_id>.json   one record per run (written atomically: temp file + rename)
+    OUT/runs/<run_id>.npz    arrays the case keeps for its figures (profiles, snapshots)
+
+A run whose record exists is skipped unless ``force``.  Failed and diverged runs are recorded with
+their reason and the study goes on.  Runs execute in worker processes (``jobs``) or in-process
+(``jobs=1``).  Every record carries the common columns documented in README.md.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+import time
+import traceback
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import mpsbench
+from mpsbench.cases import Case, get_case
+from mpsbench.protocol import Status
+
+COMMON_COLUMNS = (
+    "case", "solver", "solver_version", "tier", "run_id", "status", "reason", "wall_time_s",
+    "particle_steps_per_s", "n_particles", "n_steps",
+)
+
+
+def run_id(case: str, solver: str, params: dict[str, Any]) -> str:
+    """A readable, filesystem-safe name built from the parameters (plus a short hash)."""
+    parts = [case, solver] + [f"{k}={_short(v)}" for k, v in sorted(params.items())]
+    text = "_".join(parts)
+    digest = hashlib.sha1(json.dumps([case, solver, sorted(params.items())], default=str).encode())
+    safe = re.sub(r"[^A-Za-z0-9=.+-]+", "_", text)
+    if len(safe) > 150:
+        safe = safe[:150]
+    return f"{safe}_{digest.hexdigest()[:8]}"
+
+
+def _short(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+@dataclass
+class Task:
+    case: str
+    solver: str
+    tier: str
+    params: dict[str, Any]
+    run_id: str
+
+
+def plan(
+    case: Case, solvers: Sequence[str], tier: str, overrides: dict[str, Sequence[Any]] | None = None
+) -> list[Task]:
+    tasks = []
+    for solver in solvers:
+        for params in case.expand(tier, overrides):
+            tasks.append(Task(case.name, solver, tier, params, run_id(case.name, solver, params)))
+    return tasks
+
+
+def environment() -> dict[str, Any]:
+    """Versions and machine description stored in every record."""
+    return {
+        "mpsbench_version": mpsbench.__version__,
+        "python": platform.python_version(),
+        "numpy_version": np.__version__,
+        "machine": f"{platform.system()} {platform.machine()} {os.cpu_count()} cpu",
+        "git_commit": _git_commit(),
+    }
+
+
+def _git_commit() -> str:
+    here = Path(__file__).resolve().parent
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True, text=True,
+            timeout=5, check=False,
+        )
+        return out.stdout.strip() if out.returncode == 0 else ""
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+def execute_task(task: Task, outdir: str, env: dict[str, Any]) -> dict[str, Any]:
+    """Run one task, write its record (and arrays) atomically, return the record.
+
+    Never raises for a failing run: the record says ``failed`` with the reason.
+    """
+    runs = Path(outdir) / "runs"
+    runs.mkdir(parents=True, exist_ok=True)
+    record: dict[str, Any] = {
+        "case": task.case, "solver": task.solver, "solver_version": "", "tier": task.tier,
+        "run_id": task.run_id, **task.params,
+    }
+    t0 = time.perf_counter()
+    arrays: dict[str, np.ndarray] = {}
+    try:
+        case = get_case(task.case)
+        out = case.execute(dict(task.params), task.solver)
+        results = out.results
+        statuses = [r.status for r in results]
+        status = Status.COMPLETED
+        reason = ""
+        for r in results:
+            if r.status != Status.COMPLETED:
+                status, reason = r.status, r.reason
+                break
+        wall = sum(r.wall_time_s for r in results)
+        psteps = sum(r.particle_steps for r in results)
+        record.update(
+            status=status.value,
+            reason=reason,
+            solver_version=results[0].solver_version if results else "",
+            wall_time_s=round(wall, 4),
+            particle_steps_per_s=round(psteps / wall, 1) if wall > 0 else 0.0,
+            n_particles=max((r.n_particles for r in results), default=0),
+            n_steps=sum(r.n_steps for r in results),
+            n_solver_runs=len(statuses),
+        )
+        record.update({k: _plain(v) for k, v in out.metrics.items()})
+        arrays = out.arrays
+    except Exception as exc:  # noqa: BLE001 - a broken case or solver is recorded, not fatal
+        tb = traceback.extract_tb(exc.__traceback__)
+        where = f" (at {tb[-1].filename}:{tb[-1].lineno})" if tb else ""
+        record.update(
+            status=Status.FAILED.value, reason=f"{type(exc).__name__}: {exc}{where}",
+            wall_time_s=round(time.perf_counter() - t0, 4), particle_steps_per_s=0.0,
+            n_particles=0, n_steps=0,
+        )
+    record["elapsed_s"] = round(time.perf_counter() - t0, 4)
+    record.update(env)
+    if arrays:
+        _atomic_npz(runs / f"{task.run_id}.npz", arrays)
+    atomic_write_text(runs / f"{task.run_id}.json", json.dumps(record, indent=1, default=_plain))
+    return record
+
+
+def _plain(v: Any) -> Any:
+    if isinstance(v, (np.floating, float)):
+        f = float(v)
+        return f if math.isfinite(f) else None
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.bool_):
+        return bool(v)
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    return v
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write to a temp file in the same folder, then rename: a reader never sees half a file."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _atomic_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".npz")
+    os.close(fd)
+    try:
+        np.savez_compressed(tmp, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def load_record(path: Path) -> dict[str, Any] | None:
+    """A record, or None if the file is unreadable (treated as not done)."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+    return data if isinstance(data, dict) and "status" in data else None
+
+
+def load_records(outdir: str | Path) -> list[dict[str, Any]]:
+    runs = Path(outdir) / "runs"
+    records = []
+    for path in sorted(runs.glob("*.json")) if runs.is_dir() else []:
+        rec = load_record(path)
+        if rec is not None:
+            records.append(rec)
+    return records
+
+
+def load_arrays(outdir: str | Path, rid: str) -> dict[str, np.ndarray]:
+    path = Path(outdir) / "runs" / f"{rid}.npz"
+    if not path.exists():
+        return {}
+    with np.load(path, allow_pickle=False) as data:
+        return {k: data[k] for k in data.files}
+
+
+ProgressFn = Callable[[int, int, dict[str, Any], bool], None]
+
+
+def print_progress(stream: Any = None) -> ProgressFn:
+    """A progress callback printing one line per finished (or skipped) run."""
+    stream = stream or sys.stderr
+    t0 = time.perf_counter()
+
+    def report(done: int, total: int, record: dict[str, Any], skipped: bool) -> None:
+        state = "skip" if skipped else record.get("status", "?")
+        took = "" if skipped else f" {record.get('wall_time_s', 0):.1f}s"
+        elapsed = time.perf_counter() - t0
+        print(f"[{done}/{total} {elapsed:6.0f}s] {state:<9} {record['run_id']}{took}",
+              file=stream, flush=True)
+        if record.get("status") in ("failed", "diverged") and not skipped:
+            print(f"    reason: {record.get('reason', '')}", file=stream, flush=True)
+
+    return report
+
+
+def run_tasks(
+    tasks: Iterable[Task],
+    outdir: str | Path,
+    *,
+    jobs: int = 1,
+    force: bool = False,
+    progress: ProgressFn | None = None,
+) -> list[dict[str, Any]]:
+    """Run every task not yet done (all with ``force``); return all records in task order."""
+    tasks = list(tasks)
+    outdir = Path(outdir)
+    (outdir / "runs").mkdir(parents=True, exist_ok=True)
+    env = environment()
+    records: dict[str, dict[str, Any]] = {}
+    todo: list[Task] = []
+    done = 0
+    for task in tasks:
+        rec = None if force else load_record(outdir / "runs" / f"{task.run_id}.json")
+        if rec is not None:
+            records[task.run_id] = rec
+            done += 1
+            if progress:
+                progress(done, len(tasks), rec, True)
+        else:
+            todo.append(task)
+    if jobs <= 1 or len(todo) <= 1:
+        for task in todo:
+            rec = execute_task(task, str(outdir), env)
+            records[task.run_id] = rec
+            done += 1
+            if progress:
+                progress(done, len(tasks), rec, False)
+    else:
+        # Each worker runs single-threaded numerics; the pool gives the parallelism.
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            pending: dict[Future[dict[str, Any]], Task] = {
+                pool.submit(execute_task, t, str(outdir), env): t for t in todo
+            }
+            while pending:
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    task = pending.pop(fut)
+                    try:
+                        rec = fut.result()
+                    except Exception as exc:  # noqa: BLE001 - a dead worker fails its run only
+                        rec = _crashed(task, exc, env)
+                        atomic_write_text(
+                            outdir / "runs" / f"{task.run_id}.json", json.dumps(rec, indent=1)
+                        )
+                    records[task.run_id] = rec
+                    done += 1
+                    if progress:
+                        progress(done, len(tasks), rec, False)
+    return [records[t.run_id] for t in tasks]
+
+
+def _crashed(task: Task, exc: BaseException, env: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "case": task.case, "solver": task.solver, "solver_version": "", "tier": task.tier,
+        "run_id": task.run_id, **task.params, "status": Status.FAILED.value,
+        "reason": f"worker process died: {type(exc).__name__}: {exc}", "wall_time_s": 0.0,
+        "particle_steps_per_s": 0.0, "n_particles": 0, "n_steps": 0, **env,
+    }
