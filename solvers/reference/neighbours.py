@@ -27,6 +27,7 @@ class SkinnedPairs:
         self.moved = 0.0  # max displacement since the last build (upper bound)
         self.builds = 0
         self.static_n: FloatArray | None = None
+        self.no_dummy: NDArray[np.bool_] = np.zeros(0, dtype=bool)
 
     def invalidate(self) -> None:
         self.pairs = None
@@ -56,5 +57,7 @@ class SkinnedPairs:
         self.pairs = PairList(
             full.i[keep], full.j[keep], full.dx[keep], full.r[keep], full.n, full.cutoff
         )
+        kind = p.kind
+        self.no_dummy = (kind[self.pairs.i] != Kind.DUMMY) & (kind[self.pairs.j] != Kind.DUMMY)
         self.moved = 0.0
         self.builds += 1
