@@ -1,0 +1,30 @@
+"""The numba backend's compute layer: cell-linked neighbour lists and per-particle MPS kernels.
+
+Needs numba (the ``fast`` extra).  Without it, importing this package raises ImportError with
+the install command, so the solver registry lists ``numba`` as unavailable with that reason.
+
+* :mod:`.cells`: cell-list builds (CSR rows in both directions, a half pair list equal to
+  :func:`mpsbench.neighbours.build_pairs`), and :class:`.cells.CellNeighbourList` (skin upkeep).
+* :mod:`.kernels`: number density, gradients (original, pgm1-3), divergence, the four Laplacian
+  models (+ xu-jin gradient correction) on scalar and 2-vector fields, the Laplacian row sum
+  for the stable time step, collision and stabilization increments.
+
+The solver class (``NumbaSolver``) is not written yet.
+"""
+
+try:
+    import numba  # noqa: F401
+except ImportError as exc:  # pragma: no cover - exercised only without numba
+    raise ImportError("numba is not installed: pip install 'mpsbench[fast]'") from exc
+
+from . import cells, kernels
+from .cells import CellNeighbourList, CSRNeighbours, build_csr, build_pairs_cells
+
+__all__ = [
+    "CSRNeighbours",
+    "CellNeighbourList",
+    "build_csr",
+    "build_pairs_cells",
+    "cells",
+    "kernels",
+]

@@ -1,0 +1,489 @@
+"""Cell-linked neighbour lists compiled with numba: a CSR list and a half pair list.
+
+Geometry of a box is passed to the compiled code as one (2,) float64 array ``period``: the period
+L of each periodic axis and 0.0 on free axes (:func:`box_period`).  Separations follow
+:meth:`mpsbench.particles.Box.minimum_image` bit for bit: ``dx = r_j - r_i``, then on a periodic
+axis ``dx - L * rint(dx / L)``.
+
+Cells are at least ``cutoff`` wide, so every neighbour of a particle lies in its own cell or one
+of the 8 around it.  On a periodic axis the grid covers the period (``L / cs`` cells, a stencil
+that would reach the same cell twice when there are fewer than 3 is de-duplicated); on a free axis
+it covers the bounding box of the positions (capped at a few cells per particle: coarser cells
+stay correct, only slower, if one particle flies far away).  Particles are binned with a stable
+counting sort.
+
+The CSR list holds both directions of every pair: row ``i`` is
+``nbr[offsets[i]:offsets[i + 1]]`` (int32), so per-particle loops run in parallel without write
+conflicts.  It stores no geometry by default: the compute kernels recompute ``dx`` and ``r`` from
+the positions on the fly, which reads 4 bytes per entry instead of 28 and lets one list built at
+``r_max + skin`` serve many steps (:class:`CellNeighbourList`).  :func:`csr_geometry` fills
+``dx`` and ``r`` per entry when they are wanted.
+
+A pair at exactly ``r == cutoff`` may be in or out of the list depending on rounding (scipy's
+cKDTree decides it in a shifted frame); every MPS weight is zero there, so no operator changes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+from numpy.typing import NDArray
+
+from mpsbench.neighbours import PairList
+from mpsbench.particles import Box
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+# cells are made this much wider than the cut-off so rounding in the binning cannot lose a pair
+_SAFETY = 1.0 + 1e-9
+_CELLS_PER_PARTICLE = 4
+
+
+def box_period(box: Box | None) -> FloatArray:
+    """(2,) float64: the box length along each periodic axis, 0.0 along free axes."""
+    period = np.zeros(2)
+    if box is not None:
+        for ax in range(2):
+            if box.periodic[ax]:
+                period[ax] = box.hi[ax] - box.lo[ax]
+    return period
+
+
+def box_lo(box: Box | None) -> FloatArray:
+    """(2,) float64 lower corner of the box (zeros without a box): origin of periodic cells."""
+    return np.zeros(2) if box is None else np.asarray(box.lo, dtype=np.float64)
+
+
+# --------------------------------------------------------------------------- compiled helpers
+
+
+@njit(cache=True, inline="always")
+def min_image(d: float, period: float) -> float:
+    """One component of a separation under the minimum-image convention (period 0: free)."""
+    if period > 0.0:
+        # Same bits as d - L * rint(d / L) (Box.minimum_image) for |d| < 1.5 L, without the
+        # division; the general form handles positions that are not wrapped into the box.
+        if d > 0.5 * period:
+            if d < 1.5 * period:
+                return d - period
+            return d - period * np.rint(d / period)
+        if d < -0.5 * period:
+            if d > -1.5 * period:
+                return d + period
+            return d - period * np.rint(d / period)
+    return d
+
+
+@njit(cache=True)
+def _grid(pos, cutoff, period, lo, max_cells):
+    """Cell grid: origin (2,), cell size (2,), cells per axis (2,)."""
+    n = pos.shape[0]
+    origin = np.empty(2)
+    size = np.empty(2)
+    ncell = np.empty(2, np.int64)
+    extent = np.zeros(2)
+    width = cutoff * _SAFETY
+    for ax in range(2):
+        if period[ax] > 0.0:
+            m = int(period[ax] / width)
+            if m < 1:
+                m = 1
+            origin[ax] = lo[ax]
+            ncell[ax] = m
+            size[ax] = period[ax] / m
+        else:
+            xmin = np.inf
+            xmax = -np.inf
+            for i in range(n):
+                x = pos[i, ax]
+                if x < xmin:
+                    xmin = x
+                if x > xmax:
+                    xmax = x
+            if not xmax >= xmin:  # no finite coordinate
+                xmin = 0.0
+                xmax = 0.0
+            origin[ax] = xmin
+            extent[ax] = xmax - xmin
+            size[ax] = width
+            ncell[ax] = int(extent[ax] / width) + 1
+    while ncell[0] * ncell[1] > max_cells:
+        ax = 0 if ncell[0] >= ncell[1] else 1
+        if ncell[ax] == 1:
+            break
+        if period[ax] > 0.0:
+            ncell[ax] = ncell[ax] // 2
+            size[ax] = period[ax] / ncell[ax]
+        else:
+            size[ax] *= 2.0
+            ncell[ax] = int(extent[ax] / size[ax]) + 1
+    return origin, size, ncell
+
+
+@njit(cache=True, inline="always")
+def _coord(x, origin, size, m, periodic):
+    f = np.floor((x - origin) / size)
+    if periodic:
+        if not abs(f) < 1e15:  # NaN or absurd: any cell is correct for the distance test
+            return 0
+        return int(f) % m
+    if not f >= 0.0:
+        return 0
+    if f >= m:
+        return m - 1
+    return int(f)
+
+
+@njit(cache=True, parallel=True)
+def _bin(pos, origin, size, ncell, period, cell):
+    """Cell id of every particle; ids run along x fastest (``cy * nx + cx``)."""
+    n = pos.shape[0]
+    px = period[0] > 0.0
+    py = period[1] > 0.0
+    for i in prange(n):
+        cx = _coord(pos[i, 0], origin[0], size[0], ncell[0], px)
+        cy = _coord(pos[i, 1], origin[1], size[1], ncell[1], py)
+        cell[i] = cy * ncell[0] + cx
+
+
+@njit(cache=True)
+def _counting_sort(cell, ncells, start, order):
+    """Stable counting sort of particles by cell: ``order`` lists particles cell by cell."""
+    n = cell.shape[0]
+    start[:] = 0
+    for i in range(n):
+        start[cell[i] + 1] += 1
+    for c in range(ncells):
+        start[c + 1] += start[c]
+    ptr = start[:-1].copy()
+    for i in range(n):
+        c = cell[i]
+        order[ptr[c]] = i
+        ptr[c] += 1
+
+
+@njit(cache=True, inline="always")
+def _spans(c, m, periodic):
+    """Cell coordinates c-1..c+1 along one axis as up to two contiguous spans [a0, b0], [a1, b1].
+
+    Each cell appears once (a periodic axis with fewer than 4 cells takes the whole axis).
+    An empty second span has a1 > b1.
+    """
+    if periodic:
+        if m <= 3:
+            return 0, m - 1, 1, 0
+        if c == 0:
+            return 0, 1, m - 1, m - 1
+        if c == m - 1:
+            return m - 2, m - 1, 0, 0
+        return c - 1, c + 1, 1, 0
+    a = c - 1 if c > 0 else 0
+    b = c + 1 if c < m - 1 else m - 1
+    return a, b, 1, 0
+
+
+@njit(cache=True, parallel=True)
+def _scan(spos, order, start, cell, ncell, period, cut2, static, offsets, nbr, counts, fill):
+    """Count (``fill`` false) or write (``fill`` true) the neighbours of every particle.
+
+    Loops run in cell order (particles ``order[k]``), so neighbouring cells are hot in cache;
+    the cells of one stencil row are contiguous in that order and are scanned as one span.
+    Pairs whose both ends are ``static`` are skipped.
+    """
+    n = spos.shape[0]
+    nx = ncell[0]
+    ny = ncell[1]
+    px = period[0] > 0.0
+    py = period[1] > 0.0
+    for k in prange(n):
+        i = order[k]
+        xi = spos[k, 0]
+        yi = spos[k, 1]
+        si = static[i]
+        c = cell[i]
+        cy = c // nx
+        cx = c - cy * nx
+        xa0, xb0, xa1, xb1 = _spans(cx, nx, px)
+        ya0, yb0, ya1, yb1 = _spans(cy, ny, py)
+        t = offsets[i] if fill else 0
+        for ys in range(2):
+            ylo = ya0 if ys == 0 else ya1
+            yhi = yb0 if ys == 0 else yb1
+            for ay in range(ylo, yhi + 1):
+                row = ay * nx
+                for xs in range(2):
+                    xlo = xa0 if xs == 0 else xa1
+                    xhi = xb0 if xs == 0 else xb1
+                    if xlo > xhi:
+                        continue
+                    for q in range(start[row + xlo], start[row + xhi + 1]):
+                        if q == k:
+                            continue
+                        dx = min_image(spos[q, 0] - xi, period[0])
+                        dy = min_image(spos[q, 1] - yi, period[1])
+                        inside = dx * dx + dy * dy <= cut2
+                        if si:
+                            inside = inside and not static[order[q]]
+                        if fill:
+                            if inside:
+                                nbr[t] = order[q]
+                                t += 1
+                        else:
+                            t += inside
+        if not fill:
+            counts[i] = t
+
+
+@njit(cache=True, parallel=True)
+def _sort_rows(offsets, nbr):
+    for i in prange(offsets.shape[0] - 1):
+        a = offsets[i]
+        b = offsets[i + 1]
+        if b - a > 1:
+            nbr[a:b] = np.sort(nbr[a:b])
+
+
+@njit(cache=True, parallel=True)
+def csr_geometry(pos, offsets, nbr, period, dx, r):
+    """Fill ``dx[k] = r_j - r_i`` (minimum image) and ``r[k] = |dx[k]|`` for every CSR entry."""
+    n = offsets.shape[0] - 1
+    for i in prange(n):
+        xi = pos[i, 0]
+        yi = pos[i, 1]
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            d0 = min_image(pos[j, 0] - xi, period[0])
+            d1 = min_image(pos[j, 1] - yi, period[1])
+            dx[k, 0] = d0
+            dx[k, 1] = d1
+            r[k] = np.sqrt(d0 * d0 + d1 * d1)
+
+
+@njit(cache=True, parallel=True)
+def pair_geometry(pos, i, j, period, dx, r):
+    """Fill ``dx`` and ``r`` for a pair list (i, j), same formula as ``PairList.refresh``."""
+    for k in prange(i.shape[0]):
+        d0 = min_image(pos[j[k], 0] - pos[i[k], 0], period[0])
+        d1 = min_image(pos[j[k], 1] - pos[i[k], 1], period[1])
+        dx[k, 0] = d0
+        dx[k, 1] = d1
+        r[k] = np.sqrt(d0 * d0 + d1 * d1)
+
+
+@njit(cache=True, parallel=True)
+def max_displacement(pos, ref, period):
+    """max_i |pos_i - ref_i| under the minimum image (wrapping a particle is not a move).
+
+    NaN positions give NaN, which fails every ``<=`` test and so forces a rebuild.
+    """
+    n = pos.shape[0]
+    d2 = np.empty(n)
+    for i in prange(n):
+        d0 = min_image(pos[i, 0] - ref[i, 0], period[0])
+        d1 = min_image(pos[i, 1] - ref[i, 1], period[1])
+        d2[i] = d0 * d0 + d1 * d1
+    if n == 0:
+        return 0.0
+    return np.sqrt(np.max(d2))
+
+
+@njit(cache=True, parallel=True)
+def _gather_rows(pos, order, out):
+    for k in prange(order.shape[0]):
+        out[k, 0] = pos[order[k], 0]
+        out[k, 1] = pos[order[k], 1]
+
+
+# --------------------------------------------------------------------------- Python API
+
+
+@dataclass
+class CSRNeighbours:
+    """Per-particle neighbour rows (both directions of every pair).
+
+    ``offsets`` (n + 1,) int64, ``nbr`` (M,) int32; ``order`` is the cell order of the particles
+    at build time (a good permutation for spatial locality).  ``dx`` (M, 2) and ``r`` (M,) are
+    filled by :meth:`fill_geometry` only.
+    """
+
+    offsets: IntArray
+    nbr: NDArray[np.int32]
+    n: int
+    cutoff: float
+    period: FloatArray
+    order: IntArray
+    dx: FloatArray | None = None
+    r: FloatArray | None = None
+
+    def __len__(self) -> int:
+        return len(self.nbr)
+
+    @property
+    def counts(self) -> IntArray:
+        return np.diff(self.offsets)
+
+    def rows(self) -> IntArray:
+        """Row index of every entry (for tests and numpy post-processing)."""
+        return np.repeat(np.arange(self.n, dtype=np.int64), self.counts)
+
+    def fill_geometry(self, pos: FloatArray) -> None:
+        """Compute ``dx`` and ``r`` of every entry from ``pos`` (allocating them once)."""
+        m = len(self.nbr)
+        if self.dx is None or len(self.dx) != m:
+            self.dx = np.empty((m, 2))
+            self.r = np.empty(m)
+        csr_geometry(_as_pos(pos), self.offsets, self.nbr, self.period, self.dx, self.r)
+
+
+def _as_pos(pos: FloatArray) -> FloatArray:
+    return np.ascontiguousarray(pos, dtype=np.float64).reshape(-1, 2)
+
+
+def build_csr(
+    pos: FloatArray,
+    cutoff: float,
+    box: Box | None = None,
+    *,
+    static: NDArray[np.bool_] | None = None,
+    sort_rows: bool = False,
+    geometry: bool = False,
+) -> CSRNeighbours:
+    """All neighbours within ``cutoff`` of every particle, as CSR rows.
+
+    ``static``: pairs whose two ends are both flagged are left out (rigid boundary-boundary
+    pairs whose contribution a solver precomputes).  ``sort_rows`` orders each row by
+    neighbour index (deterministic layout for comparisons; costs a sort per row).
+    ``geometry`` also fills ``dx`` and ``r``.
+    """
+    pos = _as_pos(pos)
+    n = len(pos)
+    if not cutoff > 0:
+        raise ValueError(f"build_csr: cutoff must be > 0, got {cutoff}")
+    period = box_period(box)
+    for ax in range(2):
+        if period[ax] > 0 and cutoff >= period[ax] / 2:
+            raise ValueError(
+                f"build_csr: cutoff {cutoff} must be < half the periodic length {period[ax]}"
+            )
+    st = np.zeros(n, np.bool_) if static is None else np.ascontiguousarray(static, np.bool_)
+    if len(st) != n:
+        raise ValueError(f"build_csr: static has length {len(st)}, expected {n}")
+    origin, size, ncell = _grid(
+        pos, float(cutoff), period, box_lo(box), _CELLS_PER_PARTICLE * n + 64
+    )
+    ncells = int(ncell[0] * ncell[1])
+    cell = np.empty(n, np.int64)
+    _bin(pos, origin, size, ncell, period, cell)
+    start = np.empty(ncells + 1, np.int64)
+    order = np.empty(n, np.int64)
+    _counting_sort(cell, ncells, start, order)
+    spos = np.empty((n, 2))
+    _gather_rows(pos, order, spos)
+    counts = np.empty(n, np.int64)
+    offsets = np.zeros(n + 1, np.int64)
+    dummy = np.empty(0, np.int32)
+    cut2 = float(cutoff) ** 2
+    _scan(spos, order, start, cell, ncell, period, cut2, st, offsets, dummy, counts, False)
+    np.cumsum(counts, out=offsets[1:])
+    nbr = np.empty(int(offsets[-1]), np.int32)
+    _scan(spos, order, start, cell, ncell, period, cut2, st, offsets, nbr, counts, True)
+    if sort_rows:
+        _sort_rows(offsets, nbr)
+    out = CSRNeighbours(offsets, nbr, n, float(cutoff), period, order)
+    if geometry:
+        out.fill_geometry(pos)
+    return out
+
+
+def csr_to_pairs(csr: CSRNeighbours, pos: FloatArray) -> PairList:
+    """The half pair list (i < j, sorted by i then j) of a CSR list, with ``dx`` and ``r``."""
+    rows = csr.rows()
+    nbr = csr.nbr.astype(np.int64)
+    keep = nbr > rows
+    i, j = rows[keep], nbr[keep]
+    order = np.lexsort((j, i))
+    i = np.ascontiguousarray(i[order], dtype=np.intp)
+    j = np.ascontiguousarray(j[order], dtype=np.intp)
+    dx = np.empty((len(i), 2))
+    r = np.empty(len(i))
+    pair_geometry(_as_pos(pos), i, j, csr.period, dx, r)
+    return PairList(i, j, dx, r, csr.n, csr.cutoff)
+
+
+def build_pairs_cells(pos: FloatArray, cutoff: float, box: Box | None = None) -> PairList:
+    """Same result as :func:`mpsbench.neighbours.build_pairs`, from the cell list."""
+    pos = _as_pos(pos)
+    if len(pos) < 2:
+        if not cutoff > 0:
+            raise ValueError(f"build_pairs_cells: cutoff must be > 0, got {cutoff}")
+        empty = np.zeros(0, dtype=np.intp)
+        return PairList(empty, empty.copy(), np.zeros((0, 2)), np.zeros(0), len(pos), cutoff)
+    return csr_to_pairs(build_csr(pos, cutoff, box), pos)
+
+
+class CellNeighbourList:
+    """A CSR list built at ``r_max + skin`` and kept while no particle moved more than skin/2.
+
+    Call :meth:`update` with the current positions before each use; it rebuilds only when a
+    particle has moved more than ``skin / 2`` since the last build (then no pair within
+    ``r_max`` can be missing), when the particle count changed, or after :meth:`invalidate`.
+    Kernels evaluate weights as zero beyond their own r_e, so the extra pairs are harmless.
+    """
+
+    def __init__(
+        self, r_max: float, skin: float, box: Box | None = None, sort_rows: bool = False
+    ) -> None:
+        if not r_max > 0 or not skin >= 0:
+            raise ValueError(f"CellNeighbourList: need r_max > 0, skin >= 0; got {r_max}, {skin}")
+        self.r_max = float(r_max)
+        self.skin = float(skin)
+        self.box = box
+        self.period = box_period(box)
+        self.sort_rows = sort_rows
+        self.csr: CSRNeighbours | None = None
+        self.static: NDArray[np.bool_] | None = None
+        self._ref: FloatArray | None = None
+        self.builds = 0
+
+    @property
+    def cutoff(self) -> float:
+        return self.r_max + self.skin
+
+    def invalidate(self) -> None:
+        self.csr = None
+
+    def set_static(self, static: NDArray[np.bool_] | None) -> None:
+        """Flag particles whose mutual pairs are left out (takes effect at the next build)."""
+        self.static = None if static is None else np.ascontiguousarray(static, np.bool_)
+        self.csr = None
+
+    def update(self, pos: FloatArray) -> bool:
+        """Make the list valid for ``pos``; return True when it was rebuilt."""
+        pos = _as_pos(pos)
+        if self.csr is not None and self.csr.n == len(pos) and self._ref is not None:
+            if 2.0 * max_displacement(pos, self._ref, self.period) <= self.skin:
+                return False
+        self.csr = build_csr(
+            pos, self.cutoff, self.box, static=self.static, sort_rows=self.sort_rows
+        )
+        self._ref = pos.copy()
+        self.builds += 1
+        return True
+
+
+__all__ = [
+    "CSRNeighbours",
+    "CellNeighbourList",
+    "box_lo",
+    "box_period",
+    "build_csr",
+    "build_pairs_cells",
+    "csr_geometry",
+    "csr_to_pairs",
+    "max_displacement",
+    "min_image",
+    "pair_geometry",
+]

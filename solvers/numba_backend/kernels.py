@@ -1,0 +1,520 @@
+"""numba per-particle MPS kernels over a CSR neighbour list (both directions of every pair).
+
+Every kernel loops over particles in parallel (``prange``); particle ``i`` only reads its own
+row ``nbr[offsets[i]:offsets[i + 1]]`` and writes ``out[i]``, so there are no write conflicts
+and the result does not depend on the number of threads.  Separations ``dx = r_j - r_i``
+(minimum image through ``period``, see :mod:`.cells`) and ``r = |dx|`` are recomputed from the
+positions in each kernel; weights are evaluated inline and are zero beyond the kernel's own
+``re``, so one list built at ``r_max + skin`` serves every radius.
+
+Formulas are those of :mod:`mpsbench.operators` (method.md sections 2-5, D_s = 2) and agree with
+them to rounding (per-particle summation order differs).  Integer codes select models:
+
+* weight ``wcode``: :data:`WEIGHT_CODES` (``wf1`` = 1, ``wf2`` = 2);
+* Laplacian ``model``: :data:`LAPLACIAN_CODES` (``koshizuka-oka`` 1, ``khayyer-gotoh`` 2,
+  ``xu-jin`` 3, ``xu-jin-analytic`` 4); ``gcorr`` adds the xu-jin gradient correction.
+
+Conventions: ``out`` arrays are passed in (no allocation in the hot path) and also returned;
+``mask`` arguments are boolean per-particle arrays: a particle whose mask is false neither
+receives nor contributes (the reference backend leaves dummy particles out of the pressure
+gradient this way).  A coincident pair (r = 0) contributes nothing (the reference would produce
+inf/NaN for it).  Units follow the inputs (SI in the solvers).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from .cells import min_image
+
+DIM = 2.0  # D_s
+
+WEIGHT_CODES = {"wf1": 1, "wf2": 2}
+LAPLACIAN_CODES = {"koshizuka-oka": 1, "khayyer-gotoh": 2, "xu-jin": 3, "xu-jin-analytic": 4}
+GRADIENT_CODES = {"pgm1": 1, "pgm2": 2, "pgm3": 3}
+
+FLUID = 0  # mpsbench.particles.Kind.FLUID
+
+
+def weight_code(name: str) -> int:
+    try:
+        return WEIGHT_CODES[name]
+    except KeyError:
+        raise ValueError(
+            f"numba backend: weighting function {name!r} not compiled; known: "
+            + ", ".join(WEIGHT_CODES)
+        ) from None
+
+
+def laplacian_code(name: str) -> int:
+    try:
+        return LAPLACIAN_CODES[name]
+    except KeyError:
+        raise ValueError(
+            f"numba backend: Laplacian {name!r} not compiled; known: " + ", ".join(LAPLACIAN_CODES)
+        ) from None
+
+
+def laplacian_prefactor(model: int, n0: float, lam: float) -> float:
+    """The constant in front of each model's pair coefficient (see :func:`lap_coef`)."""
+    if model == 1:
+        return 2.0 * DIM / (lam * n0)
+    if model == 2:
+        return 1.0 / n0
+    if model == 3:
+        return 2.0 * DIM / n0
+    if model == 4:
+        return DIM / n0
+    raise ValueError(f"unknown Laplacian code {model}")
+
+
+# --------------------------------------------------------------------------- inline pieces
+
+
+@njit(cache=True, inline="always")
+def weight(wcode, r, re):
+    """W(r): wf1 = re/r - 1, wf2 = (1 - r/re)^3; 0 beyond re (and at r = 0)."""
+    if r > re or r <= 0.0:
+        return 0.0
+    if wcode == 1:
+        return re / r - 1.0
+    t = 1.0 - r / re
+    return t * t * t
+
+
+@njit(cache=True, inline="always")
+def dweight(wcode, r, re):
+    """W'(r): wf1 = -re/r^2, wf2 = -(3/re)(1 - r/re)^2; 0 beyond re (and at r = 0)."""
+    if r > re or r <= 0.0:
+        return 0.0
+    if wcode == 1:
+        return -re / (r * r)
+    t = 1.0 - r / re
+    return -(3.0 / re) * (t * t)
+
+
+@njit(cache=True, inline="always")
+def d2weight(wcode, r, re):
+    """W''(r): wf1 = 2 re/r^3, wf2 = (6/re^2)(1 - r/re); 0 beyond re (and at r = 0)."""
+    if r > re or r <= 0.0:
+        return 0.0
+    if wcode == 1:
+        return 2.0 * re / (r * r * r)
+    return (6.0 / (re * re)) * (1.0 - r / re)
+
+
+@njit(cache=True, inline="always")
+def lap_coef(model, wcode, r, re, pref):
+    """Pair coefficient c_ij of a Laplacian; ``pref`` from :func:`laplacian_prefactor`.
+
+    1 koshizuka-oka: pref W; 2 khayyer-gotoh: pref (W'' - W'/r); 3 xu-jin: pref W / r^2;
+    4 xu-jin-analytic: pref (-W'/r)  (2-D forms).
+    """
+    if r > re or r <= 0.0:
+        return 0.0
+    if model == 1:
+        return pref * weight(wcode, r, re)
+    if model == 2:
+        return pref * (d2weight(wcode, r, re) - dweight(wcode, r, re) / r)
+    if model == 3:
+        return pref * (weight(wcode, r, re) / (r * r))
+    return pref * (-dweight(wcode, r, re) / r)
+
+
+# --------------------------------------------------------------------------- number density
+
+
+@njit(cache=True, parallel=True)
+def number_density(offsets, nbr, pos, period, wcode, re, out):
+    """n_i = sum_j W_ij."""
+    n = offsets.shape[0] - 1
+    for i in prange(n):
+        xi = pos[i, 0]
+        yi = pos[i, 1]
+        s = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            dx = min_image(pos[j, 0] - xi, period[0])
+            dy = min_image(pos[j, 1] - yi, period[1])
+            s += weight(wcode, np.sqrt(dx * dx + dy * dy), re)
+        out[i] = s
+    return out
+
+
+# --------------------------------------------------------------------------- gradients
+
+
+@njit(cache=True, parallel=True)
+def gradient(offsets, nbr, pos, period, phi, wcode, re, n0, out):
+    """Original gradient (Eq. 5): (D/n0) sum_j (phi_j - phi_i) r_ij W_ij / r_ij^2; out (n, 2)."""
+    n = offsets.shape[0] - 1
+    f = DIM / n0
+    for i in prange(n):
+        xi = pos[i, 0]
+        yi = pos[i, 1]
+        gx = 0.0
+        gy = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            dx = min_image(pos[j, 0] - xi, period[0])
+            dy = min_image(pos[j, 1] - yi, period[1])
+            r2 = dx * dx + dy * dy
+            w = weight(wcode, np.sqrt(r2), re)
+            if w != 0.0:
+                c = (phi[j] - phi[i]) * (w / r2)
+                gx += c * dx
+                gy += c * dy
+        out[i, 0] = f * gx
+        out[i, 1] = f * gy
+    return out
+
+
+@njit(cache=True, parallel=True)
+def divergence(offsets, nbr, pos, period, u, wcode, re, n0, out):
+    """(D/n0) sum_j (u_j - u_i) . r_ij W_ij / r_ij^2 for a (n, 2) field ``u``."""
+    n = offsets.shape[0] - 1
+    f = DIM / n0
+    for i in prange(n):
+        xi = pos[i, 0]
+        yi = pos[i, 1]
+        s = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            dx = min_image(pos[j, 0] - xi, period[0])
+            dy = min_image(pos[j, 1] - yi, period[1])
+            r2 = dx * dx + dy * dy
+            w = weight(wcode, np.sqrt(r2), re)
+            if w != 0.0:
+                s += ((u[j, 0] - u[i, 0]) * dx + (u[j, 1] - u[i, 1]) * dy) * (w / r2)
+        out[i] = f * s
+    return out
+
+
+@njit(cache=True, parallel=True)
+def neighbour_min(offsets, nbr, pos, period, p, mask, wcode, re, out):
+    """p_min,i = min(p_i, min of p_j over neighbours with W_ij > 0 and mask_j); masked i: p_i."""
+    n = offsets.shape[0] - 1
+    for i in prange(n):
+        m = p[i]
+        if mask[i]:
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                if not mask[j] or p[j] >= m:
+                    continue
+                dx = min_image(pos[j, 0] - xi, period[0])
+                dy = min_image(pos[j, 1] - yi, period[1])
+                if weight(wcode, np.sqrt(dx * dx + dy * dy), re) > 0.0:
+                    m = p[j]
+        out[i] = m
+    return out
+
+
+@njit(cache=True, parallel=True)
+def pgm1(offsets, nbr, pos, period, p, mask, wcode, re, n0, out):
+    """PGM1 (Eq. 6): (D/n0) sum_j (p_j - pmin_i) r_ij W / r^2, p_min,i fused in (out (n, 2))."""
+    n = offsets.shape[0] - 1
+    f = DIM / n0
+    for i in prange(n):
+        if not mask[i]:
+            out[i, 0] = 0.0
+            out[i, 1] = 0.0
+            continue
+        xi = pos[i, 0]
+        yi = pos[i, 1]
+        pmin = p[i]
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            if not mask[j] or p[j] >= pmin:
+                continue
+            dx = min_image(pos[j, 0] - xi, period[0])
+            dy = min_image(pos[j, 1] - yi, period[1])
+            if weight(wcode, np.sqrt(dx * dx + dy * dy), re) > 0.0:
+                pmin = p[j]
+        gx = 0.0
+        gy = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            if not mask[j]:
+                continue
+            dx = min_image(pos[j, 0] - xi, period[0])
+            dy = min_image(pos[j, 1] - yi, period[1])
+            r2 = dx * dx + dy * dy
+            w = weight(wcode, np.sqrt(r2), re)
+            if w != 0.0:
+                c = (p[j] - pmin) * (w / r2)
+                gx += c * dx
+                gy += c * dy
+        out[i, 0] = f * gx
+        out[i, 1] = f * gy
+    return out
+
+
+@njit(cache=True, parallel=True)
+def pgm2(offsets, nbr, pos, period, p, pmin, mask, wcode, re, n0, out):
+    """PGM2: (D/n0) sum_j [(p_i + p_j) - (pmin_i + pmin_j)] r_ij W / r^2.
+
+    ``pmin`` comes from :func:`neighbour_min` with the same mask, weight and re.
+    """
+    n = offsets.shape[0] - 1
+    f = DIM / n0
+    for i in prange(n):
+        gx = 0.0
+        gy = 0.0
+        if mask[i]:
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                if not mask[j]:
+                    continue
+                dx = min_image(pos[j, 0] - xi, period[0])
+                dy = min_image(pos[j, 1] - yi, period[1])
+                r2 = dx * dx + dy * dy
+                w = weight(wcode, np.sqrt(r2), re)
+                if w != 0.0:
+                    c = ((p[i] + p[j]) - (pmin[i] + pmin[j])) * (w / r2)
+                    gx += c * dx
+                    gy += c * dy
+        out[i, 0] = f * gx
+        out[i, 1] = f * gy
+    return out
+
+
+@njit(cache=True, parallel=True)
+def pgm3(offsets, nbr, pos, period, p, mask, wcode, re, n0, out):
+    """PGM3 (symmetric form): (D/n0) sum_j (p_i + p_j) r_ij W / r^2."""
+    n = offsets.shape[0] - 1
+    f = DIM / n0
+    for i in prange(n):
+        gx = 0.0
+        gy = 0.0
+        if mask[i]:
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                if not mask[j]:
+                    continue
+                dx = min_image(pos[j, 0] - xi, period[0])
+                dy = min_image(pos[j, 1] - yi, period[1])
+                r2 = dx * dx + dy * dy
+                w = weight(wcode, np.sqrt(r2), re)
+                if w != 0.0:
+                    c = (p[i] + p[j]) * (w / r2)
+                    gx += c * dx
+                    gy += c * dy
+        out[i, 0] = f * gx
+        out[i, 1] = f * gy
+    return out
+
+
+# --------------------------------------------------------------------------- Laplacians
+
+
+@njit(cache=True, parallel=True)
+def laplacian(offsets, nbr, pos, period, phi, model, wcode, re, pref, n0, gcorr, out):
+    """lap(phi)_i = sum_j c_ij (phi_j - phi_i) [- B_i . grad(phi)_i] for a scalar ``phi`` (n,).
+
+    ``pref`` = :func:`laplacian_prefactor`; with ``gcorr`` (xu-jin gradient correction),
+    B_i = sum_j c_ij r_ij and grad is the original gradient (D/n0) sum phi_ij r_ij W / r^2 at
+    the same ``re`` (``n0`` is used only there).
+    """
+    n = offsets.shape[0] - 1
+    f = DIM / n0
+    for i in prange(n):
+        xi = pos[i, 0]
+        yi = pos[i, 1]
+        s = 0.0
+        bx = 0.0
+        by = 0.0
+        gx = 0.0
+        gy = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            dx = min_image(pos[j, 0] - xi, period[0])
+            dy = min_image(pos[j, 1] - yi, period[1])
+            r2 = dx * dx + dy * dy
+            r = np.sqrt(r2)
+            c = lap_coef(model, wcode, r, re, pref)
+            d = phi[j] - phi[i]
+            s += c * d
+            if gcorr:
+                bx += c * dx
+                by += c * dy
+                w = weight(wcode, r, re)
+                if w != 0.0:
+                    g = d * (w / r2)
+                    gx += g * dx
+                    gy += g * dy
+        if gcorr:
+            s -= bx * (f * gx) + by * (f * gy)
+        out[i] = s
+    return out
+
+
+@njit(cache=True, parallel=True)
+def laplacian_vec(offsets, nbr, pos, period, u, model, wcode, re, pref, n0, gcorr, out):
+    """:func:`laplacian` applied to each column of a (n, 2) field ``u``; out (n, 2)."""
+    n = offsets.shape[0] - 1
+    f = DIM / n0
+    for i in prange(n):
+        xi = pos[i, 0]
+        yi = pos[i, 1]
+        ui = u[i, 0]
+        vi = u[i, 1]
+        s0 = 0.0
+        s1 = 0.0
+        bx = 0.0
+        by = 0.0
+        g0x = 0.0
+        g0y = 0.0
+        g1x = 0.0
+        g1y = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            dx = min_image(pos[j, 0] - xi, period[0])
+            dy = min_image(pos[j, 1] - yi, period[1])
+            r2 = dx * dx + dy * dy
+            r = np.sqrt(r2)
+            c = lap_coef(model, wcode, r, re, pref)
+            d0 = u[j, 0] - ui
+            d1 = u[j, 1] - vi
+            s0 += c * d0
+            s1 += c * d1
+            if gcorr:
+                bx += c * dx
+                by += c * dy
+                w = weight(wcode, r, re)
+                if w != 0.0:
+                    q = w / r2
+                    g0x += d0 * q * dx
+                    g0y += d0 * q * dy
+                    g1x += d1 * q * dx
+                    g1y += d1 * q * dy
+        if gcorr:
+            s0 -= bx * (f * g0x) + by * (f * g0y)
+            s1 -= bx * (f * g1x) + by * (f * g1y)
+        out[i, 0] = s0
+        out[i, 1] = s1
+    return out
+
+
+@njit(cache=True, parallel=True)
+def laplacian_abs_rowsum(offsets, nbr, pos, period, model, wcode, re, pref, out):
+    """sum_j |c_ij| per particle (the off-diagonal row sum; the diagonal is minus the row sum
+    of c, so the Gershgorin bound of the spectral radius is twice this for c >= 0).  The xu-jin
+    gradient correction is not included."""
+    n = offsets.shape[0] - 1
+    for i in prange(n):
+        xi = pos[i, 0]
+        yi = pos[i, 1]
+        s = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            dx = min_image(pos[j, 0] - xi, period[0])
+            dy = min_image(pos[j, 1] - yi, period[1])
+            s += abs(lap_coef(model, wcode, np.sqrt(dx * dx + dy * dy), re, pref))
+        out[i] = s
+    return out
+
+
+# ---------------------------------------------------------------- collision, stabilization
+
+
+@njit(cache=True, parallel=True)
+def collision(offsets, nbr, pos, period, vel, kind, distance, restitution, wall_share, out):
+    """Velocity increments of the Lee et al. (2011) collision model (method.md section 4).
+
+    For a fluid particle i and a neighbour j closer than ``distance`` (alpha_c l0) that
+    approaches it, (u_i - u_j) . r_ij > 0 with r_ij = r_j - r_i:
+    du_i = -(1 + e) s_ij [(u_i - u_j) . r_ij / r_ij^2] r_ij, with s_ij = m_j/(m_i + m_j) = 1/2
+    for a fluid j and ``wall_share`` for a boundary j (1.0: infinitely heavy wall, the
+    reference backend's choice; 0.5: equal masses).  All pairs use the input velocities
+    (Jacobi update, order independent).  Non-fluid rows get 0.  out (n, 2).
+    """
+    n = offsets.shape[0] - 1
+    d2max = distance * distance
+    for i in prange(n):
+        ax = 0.0
+        ay = 0.0
+        if kind[i] == FLUID:
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            ui = vel[i, 0]
+            vi = vel[i, 1]
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                dx = min_image(pos[j, 0] - xi, period[0])
+                dy = min_image(pos[j, 1] - yi, period[1])
+                r2 = dx * dx + dy * dy
+                if not (r2 < d2max and r2 > 0.0):
+                    continue
+                approach = (ui - vel[j, 0]) * dx + (vi - vel[j, 1]) * dy
+                if approach > 0.0:
+                    share = 0.5 if kind[j] == FLUID else wall_share
+                    c = share * ((1.0 + restitution) * approach / r2)
+                    ax -= c * dx
+                    ay -= c * dy
+        out[i, 0] = ax
+        out[i, 1] = ay
+    return out
+
+
+@njit(cache=True, parallel=True)
+def stabilization(
+    offsets, nbr, pos, period, vel, kind, inner, with_walls, wcode, re, n0, l0, alpha_s, out
+):
+    """Velocity increments of the stabilization (method.md section 5):
+    du_i = -(alpha_s l0 / n0) sum_j W'_ij (u_j - u_i) for particles with ``inner`` set (fluid,
+    not free surface); 0 elsewhere.  ``with_walls``: boundary particles are neighbours in the
+    sum (their ``vel`` is the wall velocity); otherwise only fluid neighbours count.
+    out (n, 2)."""
+    n = offsets.shape[0] - 1
+    f = -alpha_s * l0 / n0
+    for i in prange(n):
+        s0 = 0.0
+        s1 = 0.0
+        if inner[i]:
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                if not with_walls and kind[j] != FLUID:
+                    continue
+                dx = min_image(pos[j, 0] - xi, period[0])
+                dy = min_image(pos[j, 1] - yi, period[1])
+                dw = dweight(wcode, np.sqrt(dx * dx + dy * dy), re)
+                s0 += dw * (vel[j, 0] - vel[i, 0])
+                s1 += dw * (vel[j, 1] - vel[i, 1])
+        out[i, 0] = f * s0
+        out[i, 1] = f * s1
+    return out
+
+
+__all__ = [
+    "GRADIENT_CODES",
+    "LAPLACIAN_CODES",
+    "WEIGHT_CODES",
+    "collision",
+    "d2weight",
+    "divergence",
+    "dweight",
+    "gradient",
+    "lap_coef",
+    "laplacian",
+    "laplacian_abs_rowsum",
+    "laplacian_code",
+    "laplacian_prefactor",
+    "laplacian_vec",
+    "neighbour_min",
+    "number_density",
+    "pgm1",
+    "pgm2",
+    "pgm3",
+    "stabilization",
+    "weight",
+    "weight_code",
+]
