@@ -3,6 +3,13 @@
 Adding a weighting function is one subclass of :class:`WeightFunction` plus one
 ``WEIGHTS.register`` call (or an entry point in the ``mpsbench.kernels`` group).
 All functions are vectorised over ``r`` and return 0 outside the support ``r > r_e``.
+
+The support is closed (method.md: sums run over r_ij <= r_e) and, so that it stays closed under
+rounding, a distance up to ``r_e (1 + SUPPORT_RTOL)`` counts as ``r_e``.  On a square lattice
+with an integer r_e/l0 (2, 3, 4, ...) some neighbours sit exactly on the support boundary; for
+weights whose derivative is not zero there (WF1: W' = -1/r_e), the Laplacians that use W' would
+otherwise include or drop those neighbours at random depending on the last bit of the
+coordinates, and lose the symmetry of the stencil.  The neighbour search uses the same rule.
 """
 
 from __future__ import annotations
@@ -15,6 +22,14 @@ from numpy.typing import ArrayLike, NDArray
 from mpsbench.registry import Registry
 
 Array = NDArray[np.float64]
+
+SUPPORT_RTOL = 1e-10
+"""Relative slack of the closed support r <= r_e (see the module docstring)."""
+
+
+def within_support(r: ArrayLike, re: float) -> NDArray[np.bool_]:
+    """Mask of distances inside the closed support, ``r <= r_e (1 + SUPPORT_RTOL)``."""
+    return np.asarray(r) <= re * (1.0 + SUPPORT_RTOL)
 
 
 class WeightFunction:
@@ -35,9 +50,11 @@ class WeightFunction:
 
     def _masked(self, fn: Any, r: ArrayLike, re: float) -> Array:
         r = np.asarray(r, dtype=float)
-        inside = r <= re
+        re = float(re)
+        inside = within_support(r, re)
         out = np.zeros_like(r)
-        out[inside] = fn(r[inside], float(re))
+        # a distance within rounding of r_e is evaluated at r_e exactly
+        out[inside] = fn(np.minimum(r[inside], re), re)
         return out
 
     def _w(self, r: Array, re: float) -> Array:
@@ -105,5 +122,5 @@ def get_weight(name_or_obj: str | WeightFunction) -> WeightFunction:
     """Look a weighting function up by name (or pass an instance through)."""
     if isinstance(name_or_obj, str):
         obj: Any = WEIGHTS.get(name_or_obj)
-        return obj() if isinstance(obj, type) else obj  # type: ignore[no-any-return]
+        return obj() if isinstance(obj, type) else obj
     return name_or_obj

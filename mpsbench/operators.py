@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from mpsbench.kernels import WeightFunction, get_weight
+from mpsbench.kernels import WeightFunction, get_weight, within_support
 from mpsbench.neighbours import PairList, build_pairs
 from mpsbench.particles import Box
 from mpsbench.registry import Registry
@@ -46,7 +46,7 @@ def lattice_constants(
     m = int(np.ceil(re_ratio)) + 1
     ix, iy = np.meshgrid(np.arange(-m, m + 1), np.arange(-m, m + 1), indexing="ij")
     r = l0 * np.hypot(ix.ravel(), iy.ravel())
-    r = r[(r > 0) & (r <= re)]
+    r = r[(r > 0) & within_support(r, re)]
     w = wf.w(r, re)
     n0 = float(w.sum())
     return n0, float((r**2 * w).sum() / n0)
@@ -61,7 +61,7 @@ def particle_constants(
     if box is not None:
         box.minimum_image(d)
     r = np.hypot(d[:, 0], d[:, 1])
-    r = r[(r > 0) & (r <= re)]
+    r = r[(r > 0) & within_support(r, re)]
     w = wf.w(r, re)
     n0 = float(w.sum())
     if n0 <= 0:
@@ -69,7 +69,9 @@ def particle_constants(
     return n0, float((r**2 * w).sum() / n0)
 
 
-def interior_index(pos: FloatArray, candidates: NDArray[np.bool_], re: float, box: Box | None) -> int:
+def interior_index(
+    pos: FloatArray, candidates: NDArray[np.bool_], re: float, box: Box | None
+) -> int:
     """A candidate particle with full support: the one deepest inside the particle cloud.
 
     Depth is measured along non-periodic axes from the cloud's bounding box; along periodic
@@ -123,7 +125,9 @@ def neighbour_min(pairs: PairList, p: FloatArray, w: FloatArray) -> FloatArray:
     return pmin
 
 
-def _pair_pressure_force(pairs: PairList, pij: FloatArray, w: FloatArray, n0: float, dim: int) -> FloatArray:
+def _pair_pressure_force(
+    pairs: PairList, pij: FloatArray, w: FloatArray, n0: float, dim: int
+) -> FloatArray:
     """(D/n0) sum_j P_ij r_ij W / r^2 for a pair value that is symmetric in (i, j)."""
     coef = pij * _w_over_r2(w, pairs.r)
     # r_ij flips sign for j, P_ij does not: the sum is antisymmetric.
@@ -166,7 +170,10 @@ GradientFn = Callable[[PairList, FloatArray, FloatArray, float, int], FloatArray
 
 GRADIENTS: Registry[GradientFn] = Registry("pressure gradient", group="mpsbench.gradients")
 GRADIENTS.register(
-    "pgm1", pgm1, description="(p_j - pmin_i) with artificial repulsion", source="Xu & Jin 2016 Eq. 6"
+    "pgm1",
+    pgm1,
+    description="(p_j - pmin_i) with artificial repulsion",
+    source="Xu & Jin 2016 Eq. 6",
 )
 GRADIENTS.register(
     "pgm2",
@@ -199,8 +206,15 @@ class LaplacianModel:
     gradient_correction: bool = False
 
     def coefficients(
-        self, pairs: PairList, weight: WeightFunction, re: float, n0: float, lam: float, dim: int = 2
+        self,
+        pairs: PairList,
+        weight: WeightFunction,
+        re: float,
+        n0: float,
+        lam: float,
+        dim: int = 2,
     ) -> FloatArray:
+        """Per-pair coefficients c_ij (symmetric in i, j), aligned with ``pairs``."""
         raise NotImplementedError
 
     def apply(
@@ -235,11 +249,19 @@ class LaplacianModel:
         if phi.ndim == 1:
             g = gradient(pairs, phi, w, n0, dim)
             return (b * g).sum(axis=1)
-        cols = [(b * gradient(pairs, phi[:, k], w, n0, dim)).sum(axis=1) for k in range(phi.shape[1])]
+        cols = [
+            (b * gradient(pairs, phi[:, k], w, n0, dim)).sum(axis=1) for k in range(phi.shape[1])
+        ]
         return np.column_stack(cols)
 
     def matrix(
-        self, pairs: PairList, weight: WeightFunction, re: float, n0: float, lam: float, dim: int = 2
+        self,
+        pairs: PairList,
+        weight: WeightFunction,
+        re: float,
+        n0: float,
+        lam: float,
+        dim: int = 2,
     ) -> sp.csr_matrix:
         """The operator as a sparse (n, n) matrix L with lap(phi) = L @ phi."""
         n = pairs.n
@@ -261,14 +283,17 @@ class LaplacianModel:
         return f"<LaplacianModel {self.name}>"
 
 
-def gradient_matrix(pairs: PairList, w: FloatArray, n0: float, axis: int, dim: int = 2) -> sp.csr_matrix:
+def gradient_matrix(
+    pairs: PairList, w: FloatArray, n0: float, axis: int, dim: int = 2
+) -> sp.csr_matrix:
     """Component ``axis`` of the original gradient as a sparse matrix."""
     n = pairs.n
     c = (dim / n0) * _w_over_r2(w, pairs.r) * pairs.dx[:, axis]
-    # row i: c (phi_j - phi_i); row j: c (phi_i - phi_j) [r_ji = -r_ij and phi_ji = -phi_ij]
+    # Both ends get the same term c (phi_j - phi_i), because phi_ji r_ji = phi_ij r_ij:
+    # row i has +c on column j, row j has -c on column i (diagonals: minus the row sums).
     rows = np.concatenate([pairs.i, pairs.j])
     cols = np.concatenate([pairs.j, pairs.i])
-    off = sp.coo_matrix((np.concatenate([c, c]), (rows, cols)), shape=(n, n)).tocsr()
+    off = sp.coo_matrix((np.concatenate([c, -c]), (rows, cols)), shape=(n, n)).tocsr()
     return sp.csr_matrix(off - sp.diags(np.asarray(off.sum(axis=1)).ravel()))
 
 
@@ -279,7 +304,15 @@ class KoshizukaOka(LaplacianModel):
     description = "LM1: (2D/(lambda n0)) sum phi_ij W_ij, the original MPS Laplacian"
     source = "Koshizuka & Oka 1996"
 
-    def coefficients(self, pairs, weight, re, n0, lam, dim=2):  # type: ignore[no-untyped-def]
+    def coefficients(
+        self,
+        pairs: PairList,
+        weight: WeightFunction,
+        re: float,
+        n0: float,
+        lam: float,
+        dim: int = 2,
+    ) -> FloatArray:
         return (2.0 * dim / (lam * n0)) * weight.w(pairs.r, re)
 
 
@@ -290,7 +323,15 @@ class KhayyerGotoh(LaplacianModel):
     description = "LM2: (1/n0) sum phi_ij (W'' - W'/r), from the divergence of the SPH gradient"
     source = "Khayyer & Gotoh 2010"
 
-    def coefficients(self, pairs, weight, re, n0, lam, dim=2):  # type: ignore[no-untyped-def]
+    def coefficients(
+        self,
+        pairs: PairList,
+        weight: WeightFunction,
+        re: float,
+        n0: float,
+        lam: float,
+        dim: int = 2,
+    ) -> FloatArray:
         r = pairs.r
         return (weight.d2w(r, re) - (dim - 1) * weight.dw(r, re) / r) / n0
 
@@ -309,7 +350,15 @@ class XuJin(LaplacianModel):
     def __init__(self, gradient_correction: bool = False) -> None:
         self.gradient_correction = bool(gradient_correction)
 
-    def coefficients(self, pairs, weight, re, n0, lam, dim=2):  # type: ignore[no-untyped-def]
+    def coefficients(
+        self,
+        pairs: PairList,
+        weight: WeightFunction,
+        re: float,
+        n0: float,
+        lam: float,
+        dim: int = 2,
+    ) -> FloatArray:
         return (2.0 * dim / n0) * _w_over_r2(weight.w(pairs.r, re), pairs.r)
 
 
@@ -320,7 +369,15 @@ class XuJinAnalytic(LaplacianModel):
     description = "LM3 variant: (D/n0) sum phi_ij [-W'/r - (D-2) W/r^2], analytic divergence"
     source = "Xu & Jin 2016 (reconstructed: analytic divergence of Eq. 5)"
 
-    def coefficients(self, pairs, weight, re, n0, lam, dim=2):  # type: ignore[no-untyped-def]
+    def coefficients(
+        self,
+        pairs: PairList,
+        weight: WeightFunction,
+        re: float,
+        n0: float,
+        lam: float,
+        dim: int = 2,
+    ) -> FloatArray:
         r = pairs.r
         c = -weight.dw(r, re) / r
         if dim != 2:
@@ -352,10 +409,10 @@ def get_laplacian(name_or_obj: str | LaplacianModel, **options: Any) -> Laplacia
     if not isinstance(obj, type):
         if options:
             raise ValueError(f"Laplacian {name_or_obj!r} takes no options, got {sorted(options)}")
-        return obj  # type: ignore[no-any-return]
+        return obj
     options = {k: v for k, v in options.items() if not (k == "gradient_correction" and not v)}
     try:
-        return obj(**options)  # type: ignore[no-any-return]
+        return obj(**options)
     except TypeError:
         raise ValueError(
             f"Laplacian {name_or_obj!r} does not accept options {sorted(options)}"

@@ -1,0 +1,1 @@
+"""mpsbench test suite."""
