@@ -7,10 +7,11 @@ the field, the value and what is allowed.  Units are SI.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, fields
 from typing import Any, Literal
 
-from mpsbench.registry import UnknownNameError
+import numpy as np
 
 
 class ConfigError(ValueError):
@@ -21,8 +22,13 @@ def _fail(owner: str, name: str, value: Any, allowed: str) -> None:
     raise ConfigError(f"{owner}.{name} = {value!r} is not allowed: {allowed}")
 
 
+def _is_number(value: Any) -> bool:
+    """A real number (numpy scalars included) that is not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
 def _positive(owner: str, name: str, value: Any, allow_zero: bool = False) -> None:
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    ok = _is_number(value) and math.isfinite(value)
     if not ok or value < 0 or (value == 0 and not allow_zero):
         _fail(owner, name, value, "a finite number " + (">= 0" if allow_zero else "> 0"))
 
@@ -33,16 +39,32 @@ def _choice(owner: str, name: str, value: Any, choices: tuple[str, ...]) -> None
 
 
 def _in_range(owner: str, name: str, value: Any, lo: float, hi: float) -> None:
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and lo <= value <= hi
+    ok = _is_number(value) and lo <= value <= hi
     if not ok:
         _fail(owner, name, value, f"a number in [{lo}, {hi}]")
 
 
+def _boolean(owner: str, name: str, value: Any) -> None:
+    if not isinstance(value, (bool, np.bool_)):
+        _fail(owner, name, value, "True or False")
+
+
+def _vector(owner: str, name: str, value: Any, unit: str, nonzero: bool = False) -> None:
+    ok = (
+        isinstance(value, (tuple, list, np.ndarray))
+        and len(value) == 2
+        and all(_is_number(v) and math.isfinite(v) for v in value)
+    )
+    if ok and nonzero:
+        ok = math.hypot(*value) > 0
+    if not ok:
+        what = "a non-zero" if nonzero else "a"
+        _fail(owner, name, value, f"{what} pair of finite numbers (x, y) in {unit}")
+
+
 def _registered(owner: str, name: str, value: Any, registry: Any) -> None:
-    try:
-        registry.entry(value)
-    except UnknownNameError:
-        _fail(owner, name, value, "one of " + ", ".join(registry.names()))
+    if not isinstance(value, str) or value not in registry:
+        _fail(owner, name, value, "one of " + ", ".join(repr(n) for n in registry.names()))
 
 
 @dataclass(frozen=True)
@@ -74,6 +96,7 @@ class Models:
         _in_range("Models", "re_ratio", self.re_ratio, 1.0, 10.0)
         if self.re_ratio_laplacian is not None:
             _in_range("Models", "re_ratio_laplacian", self.re_ratio_laplacian, 1.0, 10.0)
+        _boolean("Models", "gradient_correction", self.gradient_correction)
         if self.gradient_correction and self.laplacian != "xu-jin":
             _fail("Models", "gradient_correction", True, "only with laplacian 'xu-jin'")
         _choice("Models", "n0_from", self.n0_from, ("initial", "lattice"))
@@ -97,7 +120,7 @@ class DiffusionPhysics:
 
     def __post_init__(self) -> None:
         _positive("DiffusionPhysics", "kappa", self.kappa)
-        if not self.field_name:
+        if not isinstance(self.field_name, str) or not self.field_name:
             _fail("DiffusionPhysics", "field_name", self.field_name, "a non-empty string")
 
 
@@ -130,8 +153,7 @@ class FlowPhysics:
         o = "FlowPhysics"
         _positive(o, "rho0", self.rho0)
         _positive(o, "nu", self.nu, allow_zero=True)
-        if len(self.gravity) != 2 or not all(math.isfinite(float(g)) for g in self.gravity):
-            _fail(o, "gravity", self.gravity, "a pair of finite numbers (gx, gy) in m/s^2")
+        _vector(o, "gravity", self.gravity, "m/s^2")
         _positive(o, "c0", self.c0)
         _choice(o, "eos", self.eos, ("tait", "linear"))
         _positive(o, "gamma", self.gamma)
@@ -140,6 +162,8 @@ class FlowPhysics:
         _in_range(o, "restitution", self.restitution, 0.0, 1.0)
         _in_range(o, "alpha_s", self.alpha_s, 0.0, 1.0)
         _choice(o, "wall_velocity", self.wall_velocity, ("prescribed", "mirror"))
+        for flag in ("clip_negative_pressure", "collision", "stabilization", "stabilization_walls"):
+            _boolean(o, flag, getattr(self, flag))
 
 
 @dataclass(frozen=True)
@@ -178,10 +202,14 @@ class Inflow:
     layers: int = 4
 
     def __post_init__(self) -> None:
-        if self.layers < 1:
+        _vector("Inflow", "start", self.start, "m")
+        _vector("Inflow", "end", self.end, "m")
+        if tuple(self.start) == tuple(self.end):
+            _fail("Inflow", "end", self.end, f"a point different from start = {self.start}")
+        _vector("Inflow", "velocity", self.velocity, "m/s", nonzero=True)
+        ok = isinstance(self.layers, numbers.Integral) and not isinstance(self.layers, bool)
+        if not ok or self.layers < 1:
             _fail("Inflow", "layers", self.layers, "an integer >= 1")
-        if math.hypot(*self.velocity) <= 0:
-            _fail("Inflow", "velocity", self.velocity, "a non-zero vector")
 
 
 @dataclass(frozen=True)
@@ -192,16 +220,23 @@ class Region:
     hi: tuple[float, float]
 
     def __post_init__(self) -> None:
+        _vector("Region", "lo", self.lo, "m")
+        _vector("Region", "hi", self.hi, "m")
         if not (self.hi[0] > self.lo[0] and self.hi[1] > self.lo[1]):
             _fail("Region", "hi", self.hi, f"greater than lo = {self.lo} on both axes")
 
 
 @dataclass(frozen=True)
 class WallMotion:
-    """Boundary particles with ``tag`` (in ``Particles.fields['wall_tag']``) move at ``velocity``."""
+    """Boundary particles tagged ``tag`` (``Particles.fields['wall_tag']``) move at ``velocity``."""
 
     tag: int
     velocity: tuple[float, float]
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.tag, numbers.Integral) or isinstance(self.tag, bool):
+            _fail("WallMotion", "tag", self.tag, "an integer")
+        _vector("WallMotion", "velocity", self.velocity, "m/s")
 
 
 def replace_validated(obj: Any, **changes: Any) -> Any:
@@ -212,7 +247,8 @@ def replace_validated(obj: Any, **changes: Any) -> Any:
     unknown = sorted(set(changes) - known)
     if unknown:
         raise ConfigError(
-            f"{type(obj).__name__} has no field(s) {', '.join(unknown)}; known: {', '.join(sorted(known))}"
+            f"{type(obj).__name__} has no field(s) {', '.join(unknown)}; "
+            f"known: {', '.join(sorted(known))}"
         )
     return replace(obj, **changes)
 
