@@ -4,9 +4,9 @@ Units: SI throughout (m, m/s, Pa).  Kinds: fluid particles move; wall particles 
 boundary layer (they take part in pressure and in every operator); dummy particles sit behind the
 wall to complete the number density.  Wall and dummy particles carry the wall velocity in ``vel``.
 
-Boundary rows built by :func:`wall_layers` also carry ``wall_nx``, ``wall_ny`` (unit normal of the
-wall line, pointing into the fluid) and ``wall_dist`` (distance behind the wall line, > 0), which the
-``mirror`` wall-velocity treatment uses to reflect a boundary particle into the fluid.
+Boundary rows built by :func:`wall_layers` also carry ``wall_nx``, ``wall_ny`` (unit normal of
+the wall line, pointing into the fluid) and ``wall_dist`` (distance behind the wall line, > 0),
+which the ``mirror`` wall-velocity treatment uses to reflect a boundary particle into the fluid.
 """
 
 from __future__ import annotations
@@ -58,7 +58,10 @@ class Box:
         for ax in range(2):
             if self.periodic[ax]:
                 lo, length = self.lo[ax], self.hi[ax] - self.lo[ax]
-                pos[:, ax] = lo + np.mod(pos[:, ax] - lo, length)
+                x = np.mod(pos[:, ax] - lo, length)
+                # np.mod returns exactly `length` for tiny negative inputs: keep [lo, hi).
+                x[x >= length] = 0.0
+                pos[:, ax] = lo + x
         return pos
 
     def minimum_image(self, d: FloatArray) -> FloatArray:
@@ -288,7 +291,9 @@ def _reclassify_corners(p: Particles, width: float, l0: float, n_wall: int) -> N
     p.kind[is_wall] = Kind.WALL
 
 
-def jitter(p: Particles, amplitude: float, seed: int, where: NDArray[np.bool_] | None = None) -> None:
+def jitter(
+    p: Particles, amplitude: float, seed: int, where: NDArray[np.bool_] | None = None
+) -> None:
     """Displace particles by a seeded uniform random offset in [-amplitude, amplitude]^2."""
     if amplitude < 0:
         raise ValueError(f"jitter: amplitude must be >= 0, got {amplitude}")
