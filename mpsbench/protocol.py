@@ -9,7 +9,7 @@ This mirrors scipy's ``OdeSolver`` / ``solve_ivp`` split.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import Enum
+from enum import StrEnum
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -27,7 +27,7 @@ from mpsbench.particles import Box, Kind, Particles
 from mpsbench.registry import Registry
 
 
-class Status(str, Enum):
+class Status(StrEnum):
     READY = "ready"
     RUNNING = "running"
     COMPLETED = "completed"
@@ -129,7 +129,8 @@ class Capabilities:
             if have is None:
                 continue
             for item in sorted(needed - set(have)):
-                out.append(f"{category[:-1] if category.endswith('s') else category} {item!r} not supported")
+                what = category[:-1] if category.endswith("s") else category
+                out.append(f"{what} {item!r} not supported")
         return out
 
     def as_dict(self) -> dict[str, Any]:
@@ -163,7 +164,7 @@ class Solver(Protocol):
         """The current particles (a view: copy before keeping it)."""
 
     def diagnostics(self) -> dict[str, Any]:
-        """Extra per-particle quantities: ``number_density``, ``n0``, ``free_surface`` (optional)."""
+        """Extra per-particle quantities: ``number_density``, ``n0``, ``free_surface``."""
 
 
 class SolverBase:
@@ -255,5 +256,5 @@ def get_solver_class(name_or_cls: str | type) -> type:
 def make_solver(name_or_cls: str | type | Solver) -> Solver:
     """A fresh solver instance from a name, a class, or an instance (returned as is)."""
     if isinstance(name_or_cls, (str, type)):
-        return get_solver_class(name_or_cls)()  # type: ignore[no-any-return]
+        return get_solver_class(name_or_cls)()
     return name_or_cls

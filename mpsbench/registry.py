@@ -121,7 +121,9 @@ class Registry(Generic[T]):
     def get(self, name: str) -> T:
         entry = self.entry(name)
         if entry.error is not None:
-            raise PluginLoadError(f"{self.kind} {name!r} ({entry.origin}) is unavailable: {entry.error}")
+            raise PluginLoadError(
+                f"{self.kind} {name!r} ({entry.origin}) is unavailable: {entry.error}"
+            )
         if not entry.loaded:
             try:
                 obj = import_path(entry.target)
@@ -135,7 +137,7 @@ class Registry(Generic[T]):
             entry.target = obj
             if not entry.description:
                 entry.description = _first_doc_line(obj)
-        return entry.target  # type: ignore[no-any-return]
+        return entry.target
 
     def try_load_all(self) -> dict[str, str | None]:
         """Load every entry; return name -> error message (None when it loaded)."""
