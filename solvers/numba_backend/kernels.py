@@ -70,56 +70,85 @@ def laplacian_prefactor(model: int, n0: float, lam: float) -> float:
 
 
 # --------------------------------------------------------------------------- inline pieces
+#
+# The _*_in helpers assume 0 < r <= re (the kernels test that first, with the reference's own
+# comparison ``r <= re`` on r = sqrt(dx^2 + dy^2)); ``inv_re`` = 1 / re.
 
 
 @njit(cache=True, inline="always")
-def weight(wcode, r, re):
-    """W(r): wf1 = re/r - 1, wf2 = (1 - r/re)^3; 0 beyond re (and at r = 0)."""
-    if r > re or r <= 0.0:
-        return 0.0
+def _w_in(wcode, r, re, inv_re):
     if wcode == 1:
         return re / r - 1.0
-    t = 1.0 - r / re
+    t = 1.0 - r * inv_re
     return t * t * t
 
 
 @njit(cache=True, inline="always")
+def _dw_in(wcode, r, re, inv_re):
+    if wcode == 1:
+        return -re / (r * r)
+    t = 1.0 - r * inv_re
+    return -(3.0 * inv_re) * (t * t)
+
+
+@njit(cache=True, inline="always")
+def _d2w_in(wcode, r, re, inv_re):
+    if wcode == 1:
+        return 2.0 * re / (r * r * r)
+    return (6.0 * inv_re * inv_re) * (1.0 - r * inv_re)
+
+
+@njit(cache=True, inline="always")
+def _coef_in(model, wcode, r, r2, re, inv_re, pref):
+    if model == 1:
+        return pref * _w_in(wcode, r, re, inv_re)
+    if model == 2:
+        return pref * (_d2w_in(wcode, r, re, inv_re) - _dw_in(wcode, r, re, inv_re) / r)
+    if model == 3:
+        return pref * (_w_in(wcode, r, re, inv_re) / r2)
+    return pref * (-_dw_in(wcode, r, re, inv_re) / r)
+
+
+@njit(cache=True, inline="always")
+def _reject(re):
+    """A squared distance above this is certainly beyond ``re`` (skips the square root)."""
+    return re * re * (1.0 + 1e-9)
+
+
+@njit(cache=True)
+def weight(wcode, r, re):
+    """W(r): wf1 = re/r - 1, wf2 = (1 - r/re)^3; 0 beyond re (and at r = 0)."""
+    if r > re or r <= 0.0:
+        return 0.0
+    return _w_in(wcode, r, re, 1.0 / re)
+
+
+@njit(cache=True)
 def dweight(wcode, r, re):
     """W'(r): wf1 = -re/r^2, wf2 = -(3/re)(1 - r/re)^2; 0 beyond re (and at r = 0)."""
     if r > re or r <= 0.0:
         return 0.0
-    if wcode == 1:
-        return -re / (r * r)
-    t = 1.0 - r / re
-    return -(3.0 / re) * (t * t)
+    return _dw_in(wcode, r, re, 1.0 / re)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def d2weight(wcode, r, re):
     """W''(r): wf1 = 2 re/r^3, wf2 = (6/re^2)(1 - r/re); 0 beyond re (and at r = 0)."""
     if r > re or r <= 0.0:
         return 0.0
-    if wcode == 1:
-        return 2.0 * re / (r * r * r)
-    return (6.0 / (re * re)) * (1.0 - r / re)
+    return _d2w_in(wcode, r, re, 1.0 / re)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def lap_coef(model, wcode, r, re, pref):
     """Pair coefficient c_ij of a Laplacian; ``pref`` from :func:`laplacian_prefactor`.
 
     1 koshizuka-oka: pref W; 2 khayyer-gotoh: pref (W'' - W'/r); 3 xu-jin: pref W / r^2;
-    4 xu-jin-analytic: pref (-W'/r)  (2-D forms).
+    4 xu-jin-analytic: pref (-W'/r)  (2-D forms).  0 beyond re (and at r = 0).
     """
     if r > re or r <= 0.0:
         return 0.0
-    if model == 1:
-        return pref * weight(wcode, r, re)
-    if model == 2:
-        return pref * (d2weight(wcode, r, re) - dweight(wcode, r, re) / r)
-    if model == 3:
-        return pref * (weight(wcode, r, re) / (r * r))
-    return pref * (-dweight(wcode, r, re) / r)
+    return _coef_in(model, wcode, r, r * r, re, 1.0 / re, pref)
 
 
 # --------------------------------------------------------------------------- number density
@@ -129,15 +158,24 @@ def lap_coef(model, wcode, r, re, pref):
 def number_density(offsets, nbr, pos, period, wcode, re, out):
     """n_i = sum_j W_ij."""
     n = offsets.shape[0] - 1
+    px = period[0]
+    py = period[1]
+    inv_re = 1.0 / re
+    rej = _reject(re)
     for i in prange(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
         s = 0.0
         for k in range(offsets[i], offsets[i + 1]):
             j = nbr[k]
-            dx = min_image(pos[j, 0] - xi, period[0])
-            dy = min_image(pos[j, 1] - yi, period[1])
-            s += weight(wcode, np.sqrt(dx * dx + dy * dy), re)
+            dx = min_image(pos[j, 0] - xi, px)
+            dy = min_image(pos[j, 1] - yi, py)
+            r2 = dx * dx + dy * dy
+            if r2 > rej or r2 == 0.0:
+                continue
+            r = np.sqrt(r2)
+            if r <= re:
+                s += _w_in(wcode, r, re, inv_re)
         out[i] = s
     return out
 
@@ -150,6 +188,10 @@ def gradient(offsets, nbr, pos, period, phi, wcode, re, n0, out):
     """Original gradient (Eq. 5): (D/n0) sum_j (phi_j - phi_i) r_ij W_ij / r_ij^2; out (n, 2)."""
     n = offsets.shape[0] - 1
     f = DIM / n0
+    px = period[0]
+    py = period[1]
+    inv_re = 1.0 / re
+    rej = _reject(re)
     for i in prange(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
@@ -157,12 +199,14 @@ def gradient(offsets, nbr, pos, period, phi, wcode, re, n0, out):
         gy = 0.0
         for k in range(offsets[i], offsets[i + 1]):
             j = nbr[k]
-            dx = min_image(pos[j, 0] - xi, period[0])
-            dy = min_image(pos[j, 1] - yi, period[1])
+            dx = min_image(pos[j, 0] - xi, px)
+            dy = min_image(pos[j, 1] - yi, py)
             r2 = dx * dx + dy * dy
-            w = weight(wcode, np.sqrt(r2), re)
-            if w != 0.0:
-                c = (phi[j] - phi[i]) * (w / r2)
+            if r2 > rej or r2 == 0.0:
+                continue
+            r = np.sqrt(r2)
+            if r <= re:
+                c = (phi[j] - phi[i]) * (_w_in(wcode, r, re, inv_re) / r2)
                 gx += c * dx
                 gy += c * dy
         out[i, 0] = f * gx
@@ -175,78 +219,123 @@ def divergence(offsets, nbr, pos, period, u, wcode, re, n0, out):
     """(D/n0) sum_j (u_j - u_i) . r_ij W_ij / r_ij^2 for a (n, 2) field ``u``."""
     n = offsets.shape[0] - 1
     f = DIM / n0
+    px = period[0]
+    py = period[1]
+    inv_re = 1.0 / re
+    rej = _reject(re)
     for i in prange(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
         s = 0.0
         for k in range(offsets[i], offsets[i + 1]):
             j = nbr[k]
-            dx = min_image(pos[j, 0] - xi, period[0])
-            dy = min_image(pos[j, 1] - yi, period[1])
+            dx = min_image(pos[j, 0] - xi, px)
+            dy = min_image(pos[j, 1] - yi, py)
             r2 = dx * dx + dy * dy
-            w = weight(wcode, np.sqrt(r2), re)
-            if w != 0.0:
-                s += ((u[j, 0] - u[i, 0]) * dx + (u[j, 1] - u[i, 1]) * dy) * (w / r2)
+            if r2 > rej or r2 == 0.0:
+                continue
+            r = np.sqrt(r2)
+            if r <= re:
+                proj = (u[j, 0] - u[i, 0]) * dx + (u[j, 1] - u[i, 1]) * dy
+                s += proj * (_w_in(wcode, r, re, inv_re) / r2)
         out[i] = f * s
     return out
+
+
+@njit(cache=True, inline="always")
+def _pmin(offsets, nbr, pos, px, py, p, mask, wcode, re, rej, inv_re, i):
+    """min(p_i, p_j over neighbours with W_ij > 0 and mask_j)."""
+    m = p[i]
+    xi = pos[i, 0]
+    yi = pos[i, 1]
+    for k in range(offsets[i], offsets[i + 1]):
+        j = nbr[k]
+        if not mask[j] or p[j] >= m:
+            continue
+        dx = min_image(pos[j, 0] - xi, px)
+        dy = min_image(pos[j, 1] - yi, py)
+        r2 = dx * dx + dy * dy
+        if r2 > rej or r2 == 0.0:
+            continue
+        r = np.sqrt(r2)
+        if r <= re and _w_in(wcode, r, re, inv_re) > 0.0:
+            m = p[j]
+    return m
 
 
 @njit(cache=True, parallel=True)
 def neighbour_min(offsets, nbr, pos, period, p, mask, wcode, re, out):
     """p_min,i = min(p_i, min of p_j over neighbours with W_ij > 0 and mask_j); masked i: p_i."""
     n = offsets.shape[0] - 1
+    inv_re = 1.0 / re
+    rej = _reject(re)
     for i in prange(n):
-        m = p[i]
         if mask[i]:
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                if not mask[j] or p[j] >= m:
-                    continue
-                dx = min_image(pos[j, 0] - xi, period[0])
-                dy = min_image(pos[j, 1] - yi, period[1])
-                if weight(wcode, np.sqrt(dx * dx + dy * dy), re) > 0.0:
-                    m = p[j]
-        out[i] = m
+            out[i] = _pmin(
+                offsets, nbr, pos, period[0], period[1], p, mask, wcode, re, rej, inv_re, i
+            )
+        else:
+            out[i] = p[i]
     return out
+
+
+@njit(cache=True, inline="always")
+def _pressure_sum(
+    offsets, nbr, pos, px, py, p, pmin, pmin_i, mask, wcode, re, rej, inv_re, i, kind
+):
+    """sum_j P_ij r_ij W / r^2 over masked neighbours of i.
+
+    kind 1: P = p_j - pmin_i; 2: (p_i + p_j) - (pmin_i + pmin_j) (``pmin`` array); 3: p_i + p_j.
+    """
+    xi = pos[i, 0]
+    yi = pos[i, 1]
+    gx = 0.0
+    gy = 0.0
+    for k in range(offsets[i], offsets[i + 1]):
+        j = nbr[k]
+        if not mask[j]:
+            continue
+        dx = min_image(pos[j, 0] - xi, px)
+        dy = min_image(pos[j, 1] - yi, py)
+        r2 = dx * dx + dy * dy
+        if r2 > rej or r2 == 0.0:
+            continue
+        r = np.sqrt(r2)
+        if r > re:
+            continue
+        if kind == 1:
+            pij = p[j] - pmin_i
+        elif kind == 2:
+            pij = (p[i] + p[j]) - (pmin[i] + pmin[j])
+        else:
+            pij = p[i] + p[j]
+        c = pij * (_w_in(wcode, r, re, inv_re) / r2)
+        gx += c * dx
+        gy += c * dy
+    return gx, gy
 
 
 @njit(cache=True, parallel=True)
 def pgm1(offsets, nbr, pos, period, p, mask, wcode, re, n0, out):
-    """PGM1 (Eq. 6): (D/n0) sum_j (p_j - pmin_i) r_ij W / r^2, p_min,i fused in (out (n, 2))."""
+    """PGM1 (Eq. 6): (D/n0) sum_j (p_j - pmin_i) r_ij W / r^2, p_min,i fused in; out (n, 2).
+
+    Masked-out rows get 0.
+    """
     n = offsets.shape[0] - 1
     f = DIM / n0
+    px = period[0]
+    py = period[1]
+    inv_re = 1.0 / re
+    rej = _reject(re)
     for i in prange(n):
         if not mask[i]:
             out[i, 0] = 0.0
             out[i, 1] = 0.0
             continue
-        xi = pos[i, 0]
-        yi = pos[i, 1]
-        pmin = p[i]
-        for k in range(offsets[i], offsets[i + 1]):
-            j = nbr[k]
-            if not mask[j] or p[j] >= pmin:
-                continue
-            dx = min_image(pos[j, 0] - xi, period[0])
-            dy = min_image(pos[j, 1] - yi, period[1])
-            if weight(wcode, np.sqrt(dx * dx + dy * dy), re) > 0.0:
-                pmin = p[j]
-        gx = 0.0
-        gy = 0.0
-        for k in range(offsets[i], offsets[i + 1]):
-            j = nbr[k]
-            if not mask[j]:
-                continue
-            dx = min_image(pos[j, 0] - xi, period[0])
-            dy = min_image(pos[j, 1] - yi, period[1])
-            r2 = dx * dx + dy * dy
-            w = weight(wcode, np.sqrt(r2), re)
-            if w != 0.0:
-                c = (p[j] - pmin) * (w / r2)
-                gx += c * dx
-                gy += c * dy
+        pm = _pmin(offsets, nbr, pos, px, py, p, mask, wcode, re, rej, inv_re, i)
+        gx, gy = _pressure_sum(
+            offsets, nbr, pos, px, py, p, p, pm, mask, wcode, re, rej, inv_re, i, 1
+        )
         out[i, 0] = f * gx
         out[i, 1] = f * gy
     return out
@@ -254,30 +343,35 @@ def pgm1(offsets, nbr, pos, period, p, mask, wcode, re, n0, out):
 
 @njit(cache=True, parallel=True)
 def pgm2(offsets, nbr, pos, period, p, pmin, mask, wcode, re, n0, out):
-    """PGM2: (D/n0) sum_j [(p_i + p_j) - (pmin_i + pmin_j)] r_ij W / r^2.
+    """PGM2: (D/n0) sum_j [(p_i + p_j) - (pmin_i + pmin_j)] r_ij W / r^2; out (n, 2).
 
     ``pmin`` comes from :func:`neighbour_min` with the same mask, weight and re.
     """
     n = offsets.shape[0] - 1
     f = DIM / n0
+    inv_re = 1.0 / re
+    rej = _reject(re)
     for i in prange(n):
         gx = 0.0
         gy = 0.0
         if mask[i]:
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                if not mask[j]:
-                    continue
-                dx = min_image(pos[j, 0] - xi, period[0])
-                dy = min_image(pos[j, 1] - yi, period[1])
-                r2 = dx * dx + dy * dy
-                w = weight(wcode, np.sqrt(r2), re)
-                if w != 0.0:
-                    c = ((p[i] + p[j]) - (pmin[i] + pmin[j])) * (w / r2)
-                    gx += c * dx
-                    gy += c * dy
+            gx, gy = _pressure_sum(
+                offsets,
+                nbr,
+                pos,
+                period[0],
+                period[1],
+                p,
+                pmin,
+                0.0,
+                mask,
+                wcode,
+                re,
+                rej,
+                inv_re,
+                i,
+                2,
+            )
         out[i, 0] = f * gx
         out[i, 1] = f * gy
     return out
@@ -285,27 +379,32 @@ def pgm2(offsets, nbr, pos, period, p, pmin, mask, wcode, re, n0, out):
 
 @njit(cache=True, parallel=True)
 def pgm3(offsets, nbr, pos, period, p, mask, wcode, re, n0, out):
-    """PGM3 (symmetric form): (D/n0) sum_j (p_i + p_j) r_ij W / r^2."""
+    """PGM3 (symmetric form): (D/n0) sum_j (p_i + p_j) r_ij W / r^2; out (n, 2)."""
     n = offsets.shape[0] - 1
     f = DIM / n0
+    inv_re = 1.0 / re
+    rej = _reject(re)
     for i in prange(n):
         gx = 0.0
         gy = 0.0
         if mask[i]:
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                if not mask[j]:
-                    continue
-                dx = min_image(pos[j, 0] - xi, period[0])
-                dy = min_image(pos[j, 1] - yi, period[1])
-                r2 = dx * dx + dy * dy
-                w = weight(wcode, np.sqrt(r2), re)
-                if w != 0.0:
-                    c = (p[i] + p[j]) * (w / r2)
-                    gx += c * dx
-                    gy += c * dy
+            gx, gy = _pressure_sum(
+                offsets,
+                nbr,
+                pos,
+                period[0],
+                period[1],
+                p,
+                p,
+                0.0,
+                mask,
+                wcode,
+                re,
+                rej,
+                inv_re,
+                i,
+                3,
+            )
         out[i, 0] = f * gx
         out[i, 1] = f * gy
     return out
@@ -324,9 +423,14 @@ def laplacian(offsets, nbr, pos, period, phi, model, wcode, re, pref, n0, gcorr,
     """
     n = offsets.shape[0] - 1
     f = DIM / n0
+    px = period[0]
+    py = period[1]
+    inv_re = 1.0 / re
+    rej = _reject(re)
     for i in prange(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
+        phii = phi[i]
         s = 0.0
         bx = 0.0
         by = 0.0
@@ -334,21 +438,23 @@ def laplacian(offsets, nbr, pos, period, phi, model, wcode, re, pref, n0, gcorr,
         gy = 0.0
         for k in range(offsets[i], offsets[i + 1]):
             j = nbr[k]
-            dx = min_image(pos[j, 0] - xi, period[0])
-            dy = min_image(pos[j, 1] - yi, period[1])
+            dx = min_image(pos[j, 0] - xi, px)
+            dy = min_image(pos[j, 1] - yi, py)
             r2 = dx * dx + dy * dy
+            if r2 > rej or r2 == 0.0:
+                continue
             r = np.sqrt(r2)
-            c = lap_coef(model, wcode, r, re, pref)
-            d = phi[j] - phi[i]
+            if r > re:
+                continue
+            c = _coef_in(model, wcode, r, r2, re, inv_re, pref)
+            d = phi[j] - phii
             s += c * d
             if gcorr:
                 bx += c * dx
                 by += c * dy
-                w = weight(wcode, r, re)
-                if w != 0.0:
-                    g = d * (w / r2)
-                    gx += g * dx
-                    gy += g * dy
+                g = d * (_w_in(wcode, r, re, inv_re) / r2)
+                gx += g * dx
+                gy += g * dy
         if gcorr:
             s -= bx * (f * gx) + by * (f * gy)
         out[i] = s
@@ -360,6 +466,10 @@ def laplacian_vec(offsets, nbr, pos, period, u, model, wcode, re, pref, n0, gcor
     """:func:`laplacian` applied to each column of a (n, 2) field ``u``; out (n, 2)."""
     n = offsets.shape[0] - 1
     f = DIM / n0
+    px = period[0]
+    py = period[1]
+    inv_re = 1.0 / re
+    rej = _reject(re)
     for i in prange(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
@@ -375,11 +485,15 @@ def laplacian_vec(offsets, nbr, pos, period, u, model, wcode, re, pref, n0, gcor
         g1y = 0.0
         for k in range(offsets[i], offsets[i + 1]):
             j = nbr[k]
-            dx = min_image(pos[j, 0] - xi, period[0])
-            dy = min_image(pos[j, 1] - yi, period[1])
+            dx = min_image(pos[j, 0] - xi, px)
+            dy = min_image(pos[j, 1] - yi, py)
             r2 = dx * dx + dy * dy
+            if r2 > rej or r2 == 0.0:
+                continue
             r = np.sqrt(r2)
-            c = lap_coef(model, wcode, r, re, pref)
+            if r > re:
+                continue
+            c = _coef_in(model, wcode, r, r2, re, inv_re, pref)
             d0 = u[j, 0] - ui
             d1 = u[j, 1] - vi
             s0 += c * d0
@@ -387,13 +501,11 @@ def laplacian_vec(offsets, nbr, pos, period, u, model, wcode, re, pref, n0, gcor
             if gcorr:
                 bx += c * dx
                 by += c * dy
-                w = weight(wcode, r, re)
-                if w != 0.0:
-                    q = w / r2
-                    g0x += d0 * q * dx
-                    g0y += d0 * q * dy
-                    g1x += d1 * q * dx
-                    g1y += d1 * q * dy
+                q = _w_in(wcode, r, re, inv_re) / r2
+                g0x += d0 * q * dx
+                g0y += d0 * q * dy
+                g1x += d1 * q * dx
+                g1y += d1 * q * dy
         if gcorr:
             s0 -= bx * (f * g0x) + by * (f * g0y)
             s1 -= bx * (f * g1x) + by * (f * g1y)
@@ -404,19 +516,31 @@ def laplacian_vec(offsets, nbr, pos, period, u, model, wcode, re, pref, n0, gcor
 
 @njit(cache=True, parallel=True)
 def laplacian_abs_rowsum(offsets, nbr, pos, period, model, wcode, re, pref, out):
-    """sum_j |c_ij| per particle (the off-diagonal row sum; the diagonal is minus the row sum
-    of c, so the Gershgorin bound of the spectral radius is twice this for c >= 0).  The xu-jin
-    gradient correction is not included."""
+    """sum_j |c_ij| per particle: the off-diagonal row sum of |L|.
+
+    The diagonal of L is minus the row sum of c, so the Gershgorin bound of the spectral radius
+    is twice this when every c >= 0 (as the reference solver's stable_dt uses it).  The xu-jin
+    gradient correction is not included.
+    """
     n = offsets.shape[0] - 1
+    px = period[0]
+    py = period[1]
+    inv_re = 1.0 / re
+    rej = _reject(re)
     for i in prange(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
         s = 0.0
         for k in range(offsets[i], offsets[i + 1]):
             j = nbr[k]
-            dx = min_image(pos[j, 0] - xi, period[0])
-            dy = min_image(pos[j, 1] - yi, period[1])
-            s += abs(lap_coef(model, wcode, np.sqrt(dx * dx + dy * dy), re, pref))
+            dx = min_image(pos[j, 0] - xi, px)
+            dy = min_image(pos[j, 1] - yi, py)
+            r2 = dx * dx + dy * dy
+            if r2 > rej or r2 == 0.0:
+                continue
+            r = np.sqrt(r2)
+            if r <= re:
+                s += abs(_coef_in(model, wcode, r, r2, re, inv_re, pref))
         out[i] = s
     return out
 
@@ -436,7 +560,8 @@ def collision(offsets, nbr, pos, period, vel, kind, distance, restitution, wall_
     (Jacobi update, order independent).  Non-fluid rows get 0.  out (n, 2).
     """
     n = offsets.shape[0] - 1
-    d2max = distance * distance
+    px = period[0]
+    py = period[1]
     for i in prange(n):
         ax = 0.0
         ay = 0.0
@@ -447,10 +572,10 @@ def collision(offsets, nbr, pos, period, vel, kind, distance, restitution, wall_
             vi = vel[i, 1]
             for k in range(offsets[i], offsets[i + 1]):
                 j = nbr[k]
-                dx = min_image(pos[j, 0] - xi, period[0])
-                dy = min_image(pos[j, 1] - yi, period[1])
+                dx = min_image(pos[j, 0] - xi, px)
+                dy = min_image(pos[j, 1] - yi, py)
                 r2 = dx * dx + dy * dy
-                if not (r2 < d2max and r2 > 0.0):
+                if r2 == 0.0 or not np.sqrt(r2) < distance:
                     continue
                 approach = (ui - vel[j, 0]) * dx + (vi - vel[j, 1]) * dy
                 if approach > 0.0:
@@ -467,28 +592,40 @@ def collision(offsets, nbr, pos, period, vel, kind, distance, restitution, wall_
 def stabilization(
     offsets, nbr, pos, period, vel, kind, inner, with_walls, wcode, re, n0, l0, alpha_s, out
 ):
-    """Velocity increments of the stabilization (method.md section 5):
+    """Velocity increments of the stabilization (method.md section 5).
+
     du_i = -(alpha_s l0 / n0) sum_j W'_ij (u_j - u_i) for particles with ``inner`` set (fluid,
-    not free surface); 0 elsewhere.  ``with_walls``: boundary particles are neighbours in the
-    sum (their ``vel`` is the wall velocity); otherwise only fluid neighbours count.
-    out (n, 2)."""
+    not free surface), 0 elsewhere.  ``with_walls``: boundary particles are neighbours in the
+    sum (their ``vel`` is the wall velocity); otherwise only fluid neighbours count.  out (n, 2).
+    """
     n = offsets.shape[0] - 1
     f = -alpha_s * l0 / n0
+    px = period[0]
+    py = period[1]
+    inv_re = 1.0 / re
+    rej = _reject(re)
     for i in prange(n):
         s0 = 0.0
         s1 = 0.0
         if inner[i]:
             xi = pos[i, 0]
             yi = pos[i, 1]
+            ui = vel[i, 0]
+            vi = vel[i, 1]
             for k in range(offsets[i], offsets[i + 1]):
                 j = nbr[k]
                 if not with_walls and kind[j] != FLUID:
                     continue
-                dx = min_image(pos[j, 0] - xi, period[0])
-                dy = min_image(pos[j, 1] - yi, period[1])
-                dw = dweight(wcode, np.sqrt(dx * dx + dy * dy), re)
-                s0 += dw * (vel[j, 0] - vel[i, 0])
-                s1 += dw * (vel[j, 1] - vel[i, 1])
+                dx = min_image(pos[j, 0] - xi, px)
+                dy = min_image(pos[j, 1] - yi, py)
+                r2 = dx * dx + dy * dy
+                if r2 > rej or r2 == 0.0:
+                    continue
+                r = np.sqrt(r2)
+                if r <= re:
+                    dw = _dw_in(wcode, r, re, inv_re)
+                    s0 += dw * (vel[j, 0] - ui)
+                    s1 += dw * (vel[j, 1] - vi)
         out[i, 0] = f * s0
         out[i, 1] = f * s1
     return out

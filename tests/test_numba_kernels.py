@@ -1,0 +1,364 @@
+"""The numba compute layer against the numpy reference operators (mpsbench.operators).
+
+Jittered clouds in free, x-periodic and periodic boxes; both weights; several radii.  One CSR
+list built at the largest radius plus a skin serves every radius, as in a solver.  Agreement is
+held to 1e-10 relative (to the largest value of each result); pair lists must be identical.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mpsbench import operators as ops
+from mpsbench.kernels import get_weight
+from mpsbench.neighbours import PairList, build_pairs
+from mpsbench.particles import Box, Kind
+
+numba = pytest.importorskip("numba")
+_backend = pytest.importorskip("mpsbench.solvers.numba_backend")
+cells, kernels = _backend.cells, _backend.kernels
+
+RTOL = 1e-10
+L0 = 0.1
+SIDE = 16  # particles per side
+RADII = (2.1, 3.1, 4.0)
+SKIN = 0.3 * L0
+BOXES = {
+    "free": (False, False),
+    "x-periodic": (True, False),
+    "periodic": (True, True),
+}
+
+
+def close(actual: np.ndarray, expected: np.ndarray) -> None:
+    scale = float(np.max(np.abs(expected))) if expected.size else 0.0
+    np.testing.assert_allclose(actual, expected, rtol=RTOL, atol=RTOL * scale)
+
+
+def cloud(periodic: tuple[bool, bool], seed: int = 0, jitter: float = 0.1):
+    rng = np.random.default_rng(seed)
+    ix, iy = np.meshgrid(np.arange(SIDE), np.arange(SIDE), indexing="ij")
+    pos = np.column_stack([(ix.ravel() + 0.5) * L0, (iy.ravel() + 0.5) * L0])
+    pos += rng.uniform(-jitter * L0, jitter * L0, pos.shape)
+    box = Box((0.0, 0.0), (SIDE * L0, SIDE * L0), periodic)
+    box.wrap(pos)
+    n = len(pos)
+    fields = {
+        "phi": np.sin(2 * np.pi * pos[:, 0]) * np.cos(3 * np.pi * pos[:, 1])
+        + 0.1 * rng.normal(size=n),
+        "p": np.abs(rng.normal(size=n)) * 1e3,
+        "u": rng.normal(size=(n, 2)),
+    }
+    return pos, box, fields
+
+
+@pytest.fixture(scope="module", params=list(BOXES))
+def case(request):
+    pos, box, fields = cloud(BOXES[request.param])
+    csr = cells.build_csr(pos, max(RADII) * L0 + SKIN, box)
+    return request.param, pos, box, fields, csr
+
+
+def args(csr, pos, box):
+    return csr.offsets, csr.nbr, pos, cells.box_period(box)
+
+
+# --------------------------------------------------------------------------- pair lists
+
+
+@pytest.mark.parametrize("name", list(BOXES))
+@pytest.mark.parametrize("cutoff", [0.21, 0.31, 0.43, 0.7])
+def test_pair_list_equals_build_pairs(name, cutoff):
+    pos, box, _ = cloud(BOXES[name], seed=3)
+    ref = build_pairs(pos, cutoff, box)
+    got = cells.build_pairs_cells(pos, cutoff, box)
+    assert len(got) == len(ref) > 0
+    for attr in ("i", "j", "dx", "r"):
+        np.testing.assert_array_equal(getattr(got, attr), getattr(ref, attr), err_msg=attr)
+
+
+def test_pair_list_with_unwrapped_positions():
+    pos, box, _ = cloud((True, True), seed=4)
+    shifted = pos.copy()
+    rng = np.random.default_rng(5)
+    shifted += rng.integers(-2, 3, size=pos.shape) * SIDE * L0  # images up to two periods away
+    ref = build_pairs(shifted, 0.31, box)
+    got = cells.build_pairs_cells(shifted, 0.31, box)
+    for attr in ("i", "j", "dx", "r"):
+        np.testing.assert_array_equal(getattr(got, attr), getattr(ref, attr), err_msg=attr)
+
+
+def test_csr_rows_hold_both_directions(case):
+    _, pos, box, _, csr = case
+    ref = build_pairs(pos, csr.cutoff, box)
+    ii, jj, dx = ref.directed()
+    assert len(csr) == len(ii)
+    got = csr.rows() * len(pos) + csr.nbr
+    np.testing.assert_array_equal(np.sort(got), np.sort(ii * len(pos) + jj))
+    csr.fill_geometry(pos)
+    order = np.argsort(ii * len(pos) + jj)
+    mine = np.argsort(got)
+    np.testing.assert_array_equal(csr.dx[mine], dx[order])
+
+
+def test_small_and_degenerate_inputs():
+    assert len(cells.build_pairs_cells(np.zeros((0, 2)), 1.0)) == 0
+    assert len(cells.build_pairs_cells(np.zeros((1, 2)), 1.0)) == 0
+    csr = cells.build_csr(np.zeros((0, 2)), 1.0)
+    assert csr.offsets.tolist() == [0] and len(csr) == 0
+    # one far-away particle must not blow up the grid or lose pairs
+    pos, box, _ = cloud((False, False), seed=6)
+    pos = np.vstack([pos, [[1e7, -3e6]]])
+    np.testing.assert_array_equal(cells.build_pairs_cells(pos, 0.31).i, build_pairs(pos, 0.31).i)
+    with pytest.raises(ValueError, match="half the periodic length"):
+        cells.build_csr(pos[:-1], 0.9, Box((0, 0), (1.6, 1.6), (True, True)))
+
+
+def test_static_pairs_are_left_out():
+    pos, box, _ = cloud((True, False), seed=7)
+    static = pos[:, 1] < 0.4
+    csr = cells.build_csr(pos, 0.31, box, static=static)
+    ref = build_pairs(pos, 0.31, box)
+    keep = ~(static[ref.i] & static[ref.j])
+    assert len(csr) == 2 * int(keep.sum())
+
+
+def test_skinned_list_rebuilds_only_when_needed():
+    pos, box, fields = cloud((True, True), seed=8)
+    re = 3.1 * L0
+    nl = cells.CellNeighbourList(re, SKIN, box)
+    assert nl.update(pos) and nl.builds == 1
+    rng = np.random.default_rng(9)
+    moved = pos + rng.uniform(-0.2, 0.2, pos.shape) * SKIN  # |d| < skin/2
+    moved[0] += SIDE * L0  # a particle wrapped through the box is not a move
+    assert not nl.update(moved)
+    assert nl.csr is not None
+    wf, period = get_weight("wf2"), cells.box_period(box)
+    pl = build_pairs(moved, re, box)
+    got = kernels.number_density(
+        nl.csr.offsets, nl.csr.nbr, moved, period, 2, re, np.empty(len(pos))
+    )
+    close(got, ops.number_density(pl, wf.w(pl.r, re)))
+    moved[5] += 0.6 * SKIN
+    assert nl.update(moved) and nl.builds == 2
+    assert nl.update(moved[:-1]) and nl.builds == 3  # particle count changed
+
+
+# --------------------------------------------------------------------------- operators
+
+
+def test_weights_match_reference():
+    r = np.linspace(0.0, 0.5, 101)[1:]
+    re = 0.31
+    for name, code in kernels.WEIGHT_CODES.items():
+        wf = get_weight(name)
+        for mine, ref in (
+            (kernels.weight, wf.w),
+            (kernels.dweight, wf.dw),
+            (kernels.d2weight, wf.d2w),
+        ):
+            got = np.array([mine(code, x, re) for x in r])
+            close(got, ref(r, re))
+
+
+@pytest.mark.parametrize("wname", ["wf1", "wf2"])
+@pytest.mark.parametrize("rr", RADII)
+def test_density_gradient_divergence(case, wname, rr):
+    _, pos, box, f, csr = case
+    re, wf, wc = rr * L0, get_weight(wname), kernels.weight_code(wname)
+    n0, _ = ops.lattice_constants(wf, rr, L0)
+    pl = build_pairs(pos, re, box)
+    w = wf.w(pl.r, re)
+    a, n = args(csr, pos, box), len(pos)
+    close(kernels.number_density(*a, wc, re, np.empty(n)), ops.number_density(pl, w))
+    close(
+        kernels.gradient(*a, f["phi"], wc, re, n0, np.empty((n, 2))),
+        ops.gradient(pl, f["phi"], w, n0),
+    )
+    close(
+        kernels.divergence(*a, f["u"], wc, re, n0, np.empty(n)), ops.divergence(pl, f["u"], w, n0)
+    )
+
+
+@pytest.mark.parametrize("wname", ["wf1", "wf2"])
+@pytest.mark.parametrize("rr", RADII)
+def test_pressure_gradients(case, wname, rr):
+    _, pos, box, f, csr = case
+    re, wf, wc = rr * L0, get_weight(wname), kernels.weight_code(wname)
+    n0, _ = ops.lattice_constants(wf, rr, L0)
+    a, n, p = args(csr, pos, box), len(pos), f["p"]
+    # a mask that leaves particles out (the reference solver drops dummy particles this way)
+    mask = np.random.default_rng(11).random(n) > 0.2
+    for m in (np.ones(n, bool), mask):
+        full = build_pairs(pos, re, box)
+        keep = m[full.i] & m[full.j]
+        pl = PairList(full.i[keep], full.j[keep], full.dx[keep], full.r[keep], n, re)
+        w = wf.w(pl.r, re)
+        pmin = kernels.neighbour_min(*a, p, m, wc, re, np.empty(n))
+        close(pmin, ops.neighbour_min(pl, p, w))
+        ref1 = ops.pgm1(pl, p, w, n0)
+        ref1[~m] = 0.0
+        close(kernels.pgm1(*a, p, m, wc, re, n0, np.empty((n, 2))), ref1)
+        close(kernels.pgm2(*a, p, pmin, m, wc, re, n0, np.empty((n, 2))), ops.pgm2(pl, p, w, n0))
+        close(kernels.pgm3(*a, p, m, wc, re, n0, np.empty((n, 2))), ops.pgm3(pl, p, w, n0))
+
+
+LAPLACIANS = [(name, False) for name in kernels.LAPLACIAN_CODES] + [("xu-jin", True)]
+
+
+@pytest.mark.parametrize("lname,gcorr", LAPLACIANS)
+@pytest.mark.parametrize("wname", ["wf1", "wf2"])
+@pytest.mark.parametrize("rr", RADII)
+def test_laplacians(case, lname, gcorr, wname, rr):
+    _, pos, box, f, csr = case
+    re, wf, wc = rr * L0, get_weight(wname), kernels.weight_code(wname)
+    n0, lam = ops.lattice_constants(wf, rr, L0)
+    model = ops.get_laplacian(lname, gradient_correction=gcorr)
+    code = kernels.laplacian_code(lname)
+    pref = kernels.laplacian_prefactor(code, n0, lam)
+    pl = build_pairs(pos, re, box)
+    a, n = args(csr, pos, box), len(pos)
+    got = kernels.laplacian(*a, f["phi"], code, wc, re, pref, n0, gcorr, np.empty(n))
+    close(got, model.apply(pl, f["phi"], wf, re, n0, lam))
+    got = kernels.laplacian_vec(*a, f["u"], code, wc, re, pref, n0, gcorr, np.empty((n, 2)))
+    close(got, model.apply(pl, f["u"], wf, re, n0, lam))
+    if not gcorr:
+        c = model.coefficients(pl, wf, re, n0, lam)
+        got = kernels.laplacian_abs_rowsum(*a, code, wc, re, pref, np.empty(n))
+        close(got, pl.sum_sym(np.abs(c)))
+
+
+# ---------------------------------------------------------------- collision, stabilization
+
+
+def _kinds(pos):
+    kind = np.full(len(pos), Kind.FLUID, np.int8)
+    kind[pos[:, 1] < 0.25] = Kind.WALL
+    kind[pos[:, 1] < 0.15] = Kind.DUMMY
+    return kind
+
+
+def collision_numpy(pl, vel, kind, distance, e, wall_share):
+    """Pair-list form of Lee et al. (2011), as written for the reference backend."""
+    fi, fj = kind[pl.i] == Kind.FLUID, kind[pl.j] == Kind.FLUID
+    approach = ((vel[pl.i] - vel[pl.j]) * pl.dx).sum(axis=1)
+    act = (pl.r < distance) & (fi | fj) & (approach > 0)
+    share_i = np.where(fj, 0.5, wall_share)[act]
+    share_j = np.where(fi, 0.5, wall_share)[act]
+    imp = ((1.0 + e) * approach[act] / pl.r[act] ** 2)[:, None] * pl.dx[act]
+    out = np.zeros_like(vel)
+    for ax in range(2):
+        out[:, ax] -= np.bincount(pl.i[act], share_i * imp[:, ax], len(vel))
+        out[:, ax] += np.bincount(pl.j[act], share_j * imp[:, ax], len(vel))
+    out[kind != Kind.FLUID] = 0.0
+    return out
+
+
+def stabilization_numpy(pl, vel, kind, inner, with_walls, wf, re, n0, l0, alpha_s):
+    use = np.ones(len(pl), bool)
+    if not with_walls:
+        use = (kind[pl.i] == Kind.FLUID) & (kind[pl.j] == Kind.FLUID)
+    dw = np.where(use, wf.dw(pl.r, re), 0.0)
+    du = pl.diff(vel)
+    out = np.column_stack([pl.sum_antisym(dw * du[:, ax]) for ax in range(2)])
+    out *= -alpha_s * l0 / n0
+    out[~inner] = 0.0
+    return out
+
+
+@pytest.mark.parametrize("wall_share", [1.0, 0.5])
+def test_collision(case, wall_share):
+    _, _, box, f, _ = case
+    pos, _, _ = cloud(box.periodic, seed=12, jitter=0.3)  # some pairs closer than 0.8 l0
+    csr = cells.build_csr(pos, 2.1 * L0, box)
+    kind = _kinds(pos)
+    vel = f["u"].copy()
+    vel[kind != Kind.FLUID] = (0.3, 0.0)
+    dist, e = 0.8 * L0, 0.2
+    pl = build_pairs(pos, dist, box)
+    ref = collision_numpy(pl, vel, kind, dist, e, wall_share)
+    assert np.count_nonzero(ref[:, 0]) > 10
+    got = kernels.collision(
+        *args(csr, pos, box), vel, kind, dist, e, wall_share, np.empty_like(vel)
+    )
+    close(got, ref)
+
+
+@pytest.mark.parametrize("with_walls", [True, False])
+@pytest.mark.parametrize("wname", ["wf1", "wf2"])
+def test_stabilization(case, with_walls, wname):
+    _, pos, box, f, csr = case
+    re, wf = 2.1 * L0, get_weight(wname)
+    n0, _ = ops.lattice_constants(wf, 2.1, L0)
+    kind = _kinds(pos)
+    vel = f["u"].copy()
+    vel[kind != Kind.FLUID] = (0.3, 0.0)
+    inner = (kind == Kind.FLUID) & (pos[:, 1] < 1.3)  # the top rows play the free surface
+    pl = build_pairs(pos, re, box)
+    ref = stabilization_numpy(pl, vel, kind, inner, with_walls, wf, re, n0, L0, 0.01)
+    got = kernels.stabilization(
+        *args(csr, pos, box),
+        vel,
+        kind,
+        inner,
+        with_walls,
+        kernels.weight_code(wname),
+        re,
+        n0,
+        L0,
+        0.01,
+        np.empty_like(vel),
+    )
+    close(got, ref)
+
+
+# --------------------------------------------------------------------------- oracle, threads
+
+
+@pytest.mark.parametrize("wname,rr,n0_expected", [("wf1", 3.1, 18.9764), ("wf2", 2.1, 0.7146)])
+def test_lattice_number_density_oracle(wname, rr, n0_expected):
+    pos, box = ops.lattice_pairs(12, L0)
+    csr = cells.build_csr(pos, rr * L0, box)
+    n = kernels.number_density(
+        *args(csr, pos, box), kernels.weight_code(wname), rr * L0, np.empty(len(pos))
+    )
+    np.testing.assert_allclose(n, n0_expected, atol=5e-5)
+
+
+def test_results_do_not_depend_on_thread_count():
+    pos, box, f = cloud((True, False), seed=13)
+    re, n = 3.1 * L0, len(pos)
+    before = numba.get_num_threads()
+    results = []
+    try:
+        for threads in sorted({1, numba.config.NUMBA_NUM_THREADS}):
+            numba.set_num_threads(threads)
+            csr = cells.build_csr(pos, re + SKIN, box)
+            a = args(csr, pos, box)
+            results.append(
+                [
+                    csr.offsets,
+                    csr.nbr,
+                    kernels.number_density(*a, 1, re, np.empty(n)),
+                    kernels.laplacian_vec(*a, f["u"], 3, 2, re, 1.0, 2.0, True, np.empty((n, 2))),
+                    kernels.pgm1(*a, f["p"], np.ones(n, bool), 2, re, 2.0, np.empty((n, 2))),
+                ]
+            )
+    finally:
+        numba.set_num_threads(before)
+    for x, y in zip(results[0], results[-1], strict=True):
+        np.testing.assert_array_equal(x, y)
+
+
+def test_import_without_numba_names_the_extra(monkeypatch):
+    import importlib
+    import sys
+
+    for name in [m for m in sys.modules if m.startswith("mpsbench.solvers.numba_backend")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "numba", None)
+    with pytest.raises(
+        ImportError, match=r"numba is not installed: pip install 'mpsbench\[fast\]'"
+    ):
+        importlib.import_module("mpsbench.solvers.numba_backend")
