@@ -125,8 +125,9 @@ def run(
             elif s.time + 1.5 * h > nxt:  # avoid a sliver step before an event
                 h = 0.5 * (nxt - s.time)
             s.step(h)
-            if abs(s.time - nxt) <= 1e-12 * max(1.0, abs(nxt)):
-                s.time = nxt  # land exactly on the event despite round-off
+            # land exactly on the event despite round-off (no event: nxt is inf, keep the time)
+            if math.isfinite(nxt) and abs(s.time - nxt) <= 1e-12 * max(1.0, abs(nxt)):
+                s.time = nxt
             _check(s, problem, max_speed, margin, field0, limits)
             _observe(probes, s)
             if progress is not None:
@@ -206,4 +207,6 @@ def _check(
         if not np.all(np.isfinite(phi)):
             raise Diverged(f"non-finite values in field {name!r}")
         if float(np.max(np.abs(phi))) > limits.max_field_growth * field0:
-            raise Diverged(f"field {name!r} grew beyond {limits.max_field_growth}x its initial maximum")
+            raise Diverged(
+                f"field {name!r} grew beyond {limits.max_field_growth}x its initial maximum"
+            )
