@@ -134,6 +134,13 @@ class Case:
     params: tuple[Param, ...] = ()
     tiers: dict[str, list[Grid]] = {}
     metrics: dict[str, str] = {}  # metric column -> description (with unit)
+    # How ``mpsbench compare`` holds a metric against a baseline: metric -> (direction, rtol),
+    # direction "lower" | "higher" (which way is better), "equal" (any change beyond rtol is a
+    # regression) or "info" (shown, never a regression).  Metrics not listed get the defaults of
+    # :func:`mpsbench.compare.metric_rule` (error-like names: lower, rtol 0.05; timings: info).
+    compare: dict[str, tuple[str, float]] = {}
+    # The table shown in summary.md and first in index.html (default: the first of ``tables``).
+    headline: str = ""
 
     # ---- parameters
     def param(self, name: str) -> Param:
@@ -148,8 +155,10 @@ class Case:
     def defaults(self) -> dict[str, Any]:
         return {p.name: p.default for p in self.params}
 
-    def expand(self, tier: str, overrides: dict[str, Sequence[Any]] | None = None) -> list[dict[str, Any]]:
-        """All parameter sets of a tier; ``overrides`` replace a parameter's values in every grid."""
+    def expand(
+        self, tier: str, overrides: dict[str, Sequence[Any]] | None = None
+    ) -> list[dict[str, Any]]:
+        """All parameter sets of a tier; ``overrides`` replace a parameter's values in each grid."""
         if tier not in self.tiers:
             raise ConfigError(f"tier = {tier!r} is not allowed: one of {', '.join(self.tiers)}")
         overrides = overrides or {}
@@ -165,9 +174,9 @@ class Case:
                 params = self.defaults()
                 params.update(dict(zip(keys, combo, strict=True)))
                 params = {k: self.param(k).check(v) for k, v in params.items()}
-                key = tuple(sorted((k, repr(v)) for k, v in params.items()))
-                if key not in seen:
-                    seen.add(key)
+                sig = tuple(sorted((k, repr(v)) for k, v in params.items()))
+                if sig not in seen:
+                    seen.add(sig)
                     out.append(params)
         return out
 
@@ -194,7 +203,9 @@ class Case:
 
 def _validate_case(obj: Any) -> None:
     if not isinstance(obj, Case):
-        raise TypeError(f"a case entry must be a mpsbench.cases.Case instance, got {type(obj).__name__}")
+        raise TypeError(
+            f"a case entry must be a mpsbench.cases.Case instance, got {type(obj).__name__}"
+        )
     if not obj.name or not obj.tiers:
         raise TypeError("a case needs a name and at least one tier")
 

@@ -6,12 +6,14 @@ Layout of a case folder::
     tables/<name>.csv|.md       the case's tables
     figures/<name>.png          the case's figures
     checks.json                 pass/fail of each of the case's checks
+    findings.md                 the case's findings in plain words (also in report.md)
     report.md                   findings in plain words, checks, tables, figure links
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -38,10 +40,40 @@ def markdown_table(df: pd.DataFrame, floatfmt: str = ".4g") -> str:
     return str(df.to_markdown(floatfmt=floatfmt)) + "\n"
 
 
-def write_case_outputs(case: Case, records: list[dict[str, Any]], outdir: str | Path) -> list[CheckResult]:
+@dataclass
+class CaseOutputs:
+    """Everything :func:`render_case_outputs` produced for one case (and one set of records)."""
+
+    case: Case
+    records: list[dict[str, Any]]
+    checks: list[CheckResult]
+    tables: dict[str, pd.DataFrame]
+    figures: list[Path]
+    findings: str
+    outdir: Path
+
+
+def write_case_outputs(
+    case: Case, records: list[dict[str, Any]], outdir: str | Path
+) -> list[CheckResult]:
     """Write results, tables, figures, checks and report.md for one case; return the checks."""
+    return render_case_outputs(case, records, outdir).checks
+
+
+def render_case_outputs(
+    case: Case, records: list[dict[str, Any]], outdir: str | Path, *,
+    arrays_dir: str | Path | None = None,
+) -> CaseOutputs:
+    """Like :func:`write_case_outputs` but return everything written.
+
+    ``arrays_dir`` is the folder whose ``runs/`` holds the runs' arrays (default ``outdir``);
+    the per-solver folders of ``mpsbench validate all`` read the arrays of their case folder.
+    Besides the files listed in the module docstring, writes ``findings.md`` (the case's
+    plain-word findings) so a report can be re-rendered without the case's code.
+    """
     outdir = Path(outdir)
     outdir.mkdir(parents=True, exist_ok=True)
+    source = Path(arrays_dir) if arrays_dir is not None else outdir
     df = records_frame(records, case)
     df.to_csv(outdir / "results.csv", index=False)
     atomic_write_text(outdir / "results.json", json.dumps(records, indent=1, default=str))
@@ -58,15 +90,19 @@ def write_case_outputs(case: Case, records: list[dict[str, Any]], outdir: str | 
     import matplotlib
 
     matplotlib.use("Agg")
-    figures = case.figures(records, lambda rid: load_arrays(outdir, rid), fdir) if records else []
+    figures = case.figures(records, lambda rid: load_arrays(source, rid), fdir) if records else []
+    figures = [Path(f) for f in figures]
 
     checks = case.checks(records) if records else []
     atomic_write_text(
         outdir / "checks.json",
-        json.dumps([{"name": c.name, "passed": c.passed, "detail": c.detail} for c in checks], indent=1),
+        json.dumps([{"name": c.name, "passed": c.passed, "detail": c.detail} for c in checks],
+                   indent=1),
     )
+    findings = case.findings(records) if records else ""
+    (outdir / "findings.md").write_text(findings.strip() + "\n" if findings.strip() else "")
     (outdir / "report.md").write_text(render_report(case, records, checks, tables, figures, outdir))
-    return checks
+    return CaseOutputs(case, records, checks, tables, figures, findings, outdir)
 
 
 def check_lines(checks: list[CheckResult]) -> list[str]:
@@ -90,7 +126,8 @@ def render_report(
     failed = [r for r in records if r.get("status") != "completed"]
     if failed:
         lines += ["Runs that did not complete:", ""]
-        lines += [f"- `{r['run_id']}`: {r.get('status')}: {r.get('reason', '')}" for r in failed[:20]]
+        lines += [f"- `{r['run_id']}`: {r.get('status')}: {r.get('reason', '')}"
+                  for r in failed[:20]]
         lines.append("")
     findings = case.findings(records) if records else ""
     if findings:

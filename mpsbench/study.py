@@ -185,7 +185,7 @@ def _atomic_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".npz")
     os.close(fd)
     try:
-        np.savez_compressed(tmp, **arrays)
+        np.savez_compressed(tmp, **arrays)  # type: ignore[arg-type]
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -246,17 +246,27 @@ def run_tasks(
     jobs: int = 1,
     force: bool = False,
     progress: ProgressFn | None = None,
+    task_dir: Callable[[Task], str | Path] | None = None,
 ) -> list[dict[str, Any]]:
-    """Run every task not yet done (all with ``force``); return all records in task order."""
+    """Run every task not yet done (all with ``force``); return all records in task order.
+
+    ``task_dir(task)`` picks the folder of each task's ``runs/`` (default ``outdir`` for all);
+    ``mpsbench validate all`` uses it to run every case through one pool and one progress count
+    while each case keeps its own folder.
+    """
     tasks = list(tasks)
     outdir = Path(outdir)
-    (outdir / "runs").mkdir(parents=True, exist_ok=True)
+    folder: dict[str, Path] = {
+        t.run_id: Path(task_dir(t)) if task_dir is not None else outdir for t in tasks
+    }
+    for path in set(folder.values()) | (set() if task_dir is not None else {outdir}):
+        (path / "runs").mkdir(parents=True, exist_ok=True)
     env = environment()
     records: dict[str, dict[str, Any]] = {}
     todo: list[Task] = []
     done = 0
     for task in tasks:
-        rec = None if force else load_record(outdir / "runs" / f"{task.run_id}.json")
+        rec = None if force else load_record(folder[task.run_id] / "runs" / f"{task.run_id}.json")
         if rec is not None:
             records[task.run_id] = rec
             done += 1
@@ -266,7 +276,7 @@ def run_tasks(
             todo.append(task)
     if jobs <= 1 or len(todo) <= 1:
         for task in todo:
-            rec = execute_task(task, str(outdir), env)
+            rec = execute_task(task, str(folder[task.run_id]), env)
             records[task.run_id] = rec
             done += 1
             if progress:
@@ -275,7 +285,7 @@ def run_tasks(
         # Each worker runs single-threaded numerics; the pool gives the parallelism.
         with ProcessPoolExecutor(max_workers=jobs) as pool:
             pending: dict[Future[dict[str, Any]], Task] = {
-                pool.submit(execute_task, t, str(outdir), env): t for t in todo
+                pool.submit(execute_task, t, str(folder[t.run_id]), env): t for t in todo
             }
             while pending:
                 finished, _ = wait(pending, return_when=FIRST_COMPLETED)
@@ -286,7 +296,8 @@ def run_tasks(
                     except Exception as exc:  # noqa: BLE001 - a dead worker fails its run only
                         rec = _crashed(task, exc, env)
                         atomic_write_text(
-                            outdir / "runs" / f"{task.run_id}.json", json.dumps(rec, indent=1)
+                            folder[task.run_id] / "runs" / f"{task.run_id}.json",
+                            json.dumps(rec, indent=1),
                         )
                     records[task.run_id] = rec
                     done += 1

@@ -1,28 +1,52 @@
-"""``mpsbench validate CASE``: run a case's study at a tier and write its output folder."""
+"""``mpsbench validate CASE|all``: run case studies at a tier and write a report folder.
+
+``validate CASE`` writes one case folder (see :mod:`mpsbench.reporting`) plus its summary.md and
+index.html.  ``validate all`` plans every run of every registered case (built-ins and plugins) for
+every ``--solver``, runs them through one pool with one progress count, and writes the results
+folder described in :mod:`mpsbench.summary` (default ``reports/<YYYYmmdd-HHMM>-<tier>/``).
+
+Exit status: 0 when every case passes its checks, 1 when one fails (or could not be loaded or
+run), 2 on a usage error (unknown case, solver or tier, bad ``--set``).
+"""
 
 from __future__ import annotations
 
 import argparse
 import datetime as _dt
+import json
 import os
 import sys
+import time
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from mpsbench.cases import CASES, TIERS, Case, get_case
 from mpsbench.cli import UsageError
 from mpsbench.protocol import SOLVERS
-from mpsbench.reporting import check_lines, write_case_outputs
-from mpsbench.study import plan, print_progress, run_tasks
+from mpsbench.reporting import check_lines
+from mpsbench.study import Task, atomic_write_text, environment, plan, print_progress, run_tasks
+from mpsbench.summary import (
+    MANIFEST,
+    CaseSection,
+    render_case,
+    safe_render_case,
+    verdict,
+    write_top_level,
+)
 
 ORDER = 30
+BUILTIN_ORDER = ("diffusion", "couette", "water-jet", "dam-break")
+MAX_AUTO_JOBS = 4
 
 
 def register(sub: Any) -> None:
     p = sub.add_parser(
         "validate",
         help="run a validation case (or 'all') and write results, tables, figures and a report",
-        description="Run a validation case's parameter grid on one or more solvers.",
+        description="Run a validation case's parameter grid (or every case's, with 'all') on one "
+        "or more solvers and write a report folder. Exit status: 0 every case passes its "
+        "checks, 1 one fails, 2 usage error.",
     )
     p.add_argument("case", help="case name (see 'mpsbench validate --list') or 'all'", nargs="?")
     p.add_argument("--list", action="store_true", help="list the registered cases and exit")
@@ -31,15 +55,20 @@ def register(sub: Any) -> None:
     p.add_argument("--tier", default="quick", choices=TIERS,
                    help="smoke (seconds, for CI), quick (default, minutes) or paper (full grid)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE[,VALUE...]",
-                   help="override a parameter for every run; a comma list sweeps it")
-    p.add_argument("--jobs", type=int, default=1, help="parallel worker processes (default 1)")
-    p.add_argument("--out", default=None, help="output folder (default: reports/<case>-<tier>-<time>)")
+                   help="override a parameter for every run; a comma list sweeps it "
+                   "(one case only, not with 'all')")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="parallel worker processes (default: 1 for one case; for 'all' the "
+                   f"number of CPUs, at most {MAX_AUTO_JOBS})")
+    p.add_argument("--out", default=None,
+                   help="output folder (default: reports/<case>-<tier>-<time> for one case, "
+                   "reports/<YYYYmmdd-HHMM>-<tier> for 'all')")
     p.add_argument("--force", action="store_true", help="re-run runs whose record already exists")
     p.set_defaults(func=cmd_validate)
 
 
-def parse_overrides(case: Case, items: list[str]) -> dict[str, list[Any]]:
-    out: dict[str, list[Any]] = {}
+def parse_overrides(case: Case, items: list[str]) -> dict[str, Sequence[Any]]:
+    out: dict[str, Sequence[Any]] = {}
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
@@ -54,9 +83,24 @@ def default_out(name: str, tier: str) -> Path:
     return Path("reports") / f"{name}-{tier}-{stamp}"
 
 
+def default_all_out(tier: str, root: Path = Path("reports")) -> Path:
+    """``reports/<YYYYmmdd-HHMM>-<tier>``; a suffix keeps two runs in one minute apart."""
+    base = root / f"{_dt.datetime.now().strftime('%Y%m%d-%H%M')}-{tier}"
+    path, k = base, 2
+    while path.exists():
+        path, k = base.with_name(f"{base.name}-{k}"), k + 1
+    return path
+
+
+def case_order(names: list[str]) -> list[str]:
+    """Built-in cases in the order of the README, then plugin cases by name."""
+    return [n for n in BUILTIN_ORDER if n in names] + sorted(n for n in names
+                                                             if n not in BUILTIN_ORDER)
+
+
 def cmd_validate(args: argparse.Namespace) -> int:
     if args.list:
-        for name in CASES.names():
+        for name in case_order(CASES.names()):
             try:
                 case = get_case(name)
                 print(f"{name:<12} {case.title}")
@@ -65,25 +109,114 @@ def cmd_validate(args: argparse.Namespace) -> int:
         return 0
     if not args.case:
         raise UsageError("give a case name or 'all' (see --list)")
-    if args.jobs < 1:
+    if args.jobs is not None and args.jobs < 1:
         raise UsageError(f"--jobs = {args.jobs} is not allowed: an integer >= 1")
-    solvers = args.solver or ["reference"]
+    solvers = list(dict.fromkeys(args.solver or ["reference"]))
     for s in solvers:
         SOLVERS.get(s)  # unknown or broken solver: usage error before any run
-    names = CASES.names() if args.case == "all" else [args.case]
-    cases = [get_case(n) for n in names]
+    if args.case == "all":
+        if args.set:
+            raise UsageError("--set applies to one case; run 'mpsbench validate CASE --set ...'")
+        return validate_all(args, solvers)
+    return validate_one(args, solvers)
+
+
+def _manifest(args: argparse.Namespace, solvers: list[str], jobs: int) -> dict[str, Any]:
+    return {
+        "command": " ".join(["mpsbench validate", args.case, "--tier", args.tier]
+                            + [f"--solver {s}" for s in solvers] + [f"--jobs {jobs}"]),
+        "case": args.case, "tier": args.tier, "solvers": solvers, "jobs": jobs,
+        "started": _dt.datetime.now().isoformat(timespec="seconds"),
+        "environment": environment(), "cases": [],
+    }
+
+
+def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
+    case = get_case(args.case)
+    overrides = parse_overrides(case, args.set)
+    tasks = plan(case, solvers, args.tier, overrides)
     out = Path(args.out) if args.out else default_out(args.case, args.tier)
-    failed = False
-    for case in cases:
-        overrides = parse_overrides(case, args.set) if args.case != "all" else {}
-        tasks = plan(case, solvers, args.tier, overrides)
-        case_out = out if args.case != "all" else out / case.name
-        print(f"{case.name}: {len(tasks)} runs -> {case_out}", file=sys.stderr)
-        records = run_tasks(tasks, case_out, jobs=args.jobs, force=args.force,
-                            progress=print_progress())
-        checks = write_case_outputs(case, records, case_out)
-        for line in check_lines(checks):
-            print(line)
-        failed |= any(c.passed is False for c in checks)
-        print(f"report: {os.path.join(str(case_out), 'report.md')}")
-    return 1 if failed else 0
+    jobs = args.jobs or 1
+    manifest = _manifest(args, solvers, jobs)
+    t0 = time.perf_counter()
+    print(f"{case.name}: {len(tasks)} runs -> {out}", file=sys.stderr)
+    records = run_tasks(tasks, out, jobs=jobs, force=args.force, progress=print_progress())
+    section = render_case(case, records, out)
+    manifest.update(wall_s=round(time.perf_counter() - t0, 1),
+                    cases=[{"name": case.name, "error": section.error}])
+    atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
+    ok = write_top_level(out, [section], manifest, [p.name for p in case.params],
+                         write_results=False)
+    print_verdicts([section])
+    print(f"report: {os.path.join(str(out), 'report.md')}")
+    print(f"index:  {out / 'index.html'}")
+    return 0 if ok else 1
+
+
+def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
+    out = Path(args.out) if args.out else default_all_out(args.tier)
+    jobs = args.jobs or max(1, min(os.cpu_count() or 1, MAX_AUTO_JOBS))
+    manifest = _manifest(args, solvers, jobs)
+    t0 = time.perf_counter()
+    cases: list[Case] = []
+    broken: dict[str, CaseSection] = {}
+    tasks: list[Task] = []
+    names = case_order(CASES.names())
+    for name in names:
+        try:
+            case = get_case(name)
+            case_tasks = plan(case, solvers, args.tier)
+        except Exception as exc:  # noqa: BLE001 - one broken case fails itself, not the run
+            broken[name] = CaseSection(name, name, error=f"case unavailable: {exc}")
+            print(f"{name}: cannot run: {exc}", file=sys.stderr)
+            continue
+        cases.append(case)
+        tasks += case_tasks
+        print(f"{name}: {len(case_tasks)} runs", file=sys.stderr)
+    print(f"validate all: {len(tasks)} runs of {len(cases)} cases x {len(solvers)} solver(s), "
+          f"tier {args.tier}, {jobs} job(s) -> {out}", file=sys.stderr)
+    out.mkdir(parents=True, exist_ok=True)
+    manifest["cases"] = [{"name": n, "error": broken[n].error if n in broken else ""}
+                         for n in names]
+    atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
+    folder = {c.name: out / c.name for c in cases}
+    records = run_tasks(tasks, out, jobs=jobs, force=args.force, progress=print_progress(),
+                        task_dir=lambda t: folder[t.case])
+    sections: list[CaseSection] = []
+    for name in names:
+        if name in broken:
+            sections.append(broken[name])
+            continue
+        case = get_case(name)
+        recs = [r for r in records if r.get("case") == case.name]
+        sections.append(safe_render_case(case, recs, folder[case.name]))
+    for sec in sections:
+        if sec.error and sec.name not in broken:
+            print(f"{sec.name}: {sec.error}", file=sys.stderr)
+    manifest.update(wall_s=round(time.perf_counter() - t0, 1),
+                    finished=_dt.datetime.now().isoformat(timespec="seconds"),
+                    cases=[{"name": s.name, "error": s.error} for s in sections])
+    atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
+    params = [p.name for c in cases for p in c.params]
+    ok = write_top_level(out, sections, manifest, params)
+    print_verdicts(sections)
+    print(f"{verdict(ok)}: {sum(s.passed for s in sections)}/{len(sections)} cases pass "
+          f"in {manifest['wall_s']:.0f} s")
+    print(f"summary: {out / 'summary.md'}")
+    print(f"index:   {out / 'index.html'}")
+    return 0 if ok else 1
+
+
+def print_verdicts(sections: list[CaseSection]) -> None:
+    for sec in sections:
+        if sec.error:
+            print(f"FAIL {sec.name}: {sec.error}")
+        for s in sec.solvers:
+            r = s.rendered
+            print(f"{verdict(r.passed and not sec.error)} {sec.name} [{s.solver}]: "
+                  f"{len(r.records)} runs, {r.completed} completed")
+            for line in check_lines(r.checks):
+                print("  " + line)
+            for why in r.failures:
+                if not why.startswith("check failed"):
+                    print(f"  - {why}")
