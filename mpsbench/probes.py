@@ -12,7 +12,7 @@ import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
-from xml.sax.saxutils import escape
+from xml.sax.saxutils import quoteattr
 
 import numpy as np
 from numpy.typing import NDArray
@@ -60,9 +60,9 @@ class Probe:
         if not self._schedule and self.every is not None:  # step-count run
             self._record(solver)
             return
-        while self._k < len(self._schedule) and solver.time >= self._schedule[self._k] - 1e-12 * max(
-            1.0, self._schedule[self._k]
-        ):
+        while self._k < len(self._schedule) and solver.time >= self._schedule[
+            self._k
+        ] - 1e-12 * max(1.0, self._schedule[self._k]):
             self._k += 1
             self._record(solver)
 
@@ -78,7 +78,10 @@ class Probe:
 
 
 def kernel_average(
-    points: FloatArray, positions: FloatArray, values: FloatArray, radius: float,
+    points: FloatArray,
+    positions: FloatArray,
+    values: FloatArray,
+    radius: float,
     boxsize: FloatArray | None = None,
 ) -> FloatArray:
     """Shepard average of ``values`` at ``points`` with weight (1 - r/R)^3; NaN where empty."""
@@ -86,7 +89,9 @@ def kernel_average(
     if len(positions) == 0:
         return np.full(len(points), np.nan)
     tree = cKDTree(positions, boxsize=boxsize)
-    sdm = tree.sparse_distance_matrix(cKDTree(points, boxsize=boxsize), radius, output_type="coo_matrix")
+    sdm = tree.sparse_distance_matrix(
+        cKDTree(points, boxsize=boxsize), radius, output_type="coo_matrix"
+    )
     # (the coo output keeps exact zeros, so coincident points are counted)
     w = (1.0 - sdm.data / radius) ** 3
     num = np.bincount(sdm.col, w * values[sdm.row], len(points))
@@ -112,11 +117,20 @@ def _quantity(p: Particles, quantity: str) -> FloatArray:
 
 
 class Profile(Probe):
-    """A quantity (``u``, ``v``, ``speed``, ``pressure`` or a field) along a line, kernel-averaged."""
+    """A quantity (``u``, ``v``, ``speed``, ``pressure`` or a field) along a line.
+
+    Values are kernel averages of the fluid particles within ``radius`` of each point.
+    """
 
     def __init__(
-        self, name: str, start: Sequence[float], end: Sequence[float], n_points: int,
-        quantity: str, radius: float, **schedule: Any,
+        self,
+        name: str,
+        start: Sequence[float],
+        end: Sequence[float],
+        n_points: int,
+        quantity: str,
+        radius: float,
+        **schedule: Any,
     ) -> None:
         super().__init__(name, **schedule)
         s = np.linspace(0.0, 1.0, n_points)
@@ -163,8 +177,12 @@ class PointPressure(Probe):
     """
 
     def __init__(
-        self, name: str, points: Sequence[Sequence[float]], radius: float,
-        include_wall: bool = True, **schedule: Any,
+        self,
+        name: str,
+        points: Sequence[Sequence[float]],
+        radius: float,
+        include_wall: bool = True,
+        **schedule: Any,
     ) -> None:
         super().__init__(name, **schedule)
         self.points = np.atleast_2d(np.asarray(points, float))
@@ -183,7 +201,9 @@ class PointPressure(Probe):
 class SurgeFront(Probe):
     """Largest coordinate of the fluid along ``axis`` (the leading edge of a surge)."""
 
-    def __init__(self, name: str, axis: int = 0, below: float | None = None, **schedule: Any) -> None:
+    def __init__(
+        self, name: str, axis: int = 0, below: float | None = None, **schedule: Any
+    ) -> None:
         super().__init__(name, **schedule)
         self.axis = axis
         self.below = below  # only particles with y < below (ignore splashes)
@@ -250,6 +270,9 @@ def write_vtu(path: str | Path, p: Particles) -> Path:
         **p.fields,
     }
 
+    def ints(r: range) -> str:
+        return " ".join(map(str, r))
+
     def fmt(a: FloatArray) -> str:
         return " ".join(f"{v:.9g}" for v in np.ravel(a))
 
@@ -258,7 +281,7 @@ def write_vtu(path: str | Path, p: Particles) -> Path:
         a = np.asarray(a, float)
         comps = a.shape[1] if a.ndim == 2 else 1
         data.append(
-            f'<DataArray type="Float64" Name="{escape(name)}" NumberOfComponents="{comps}" '
+            f'<DataArray type="Float64" Name={quoteattr(name)} NumberOfComponents="{comps}" '
             f'format="ascii">{fmt(a)}</DataArray>'
         )
     xml = (
@@ -268,8 +291,10 @@ def write_vtu(path: str | Path, p: Particles) -> Path:
         f'<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">{fmt(pts)}'
         "</DataArray></Points>\n"
         "<Cells>"
-        f'<DataArray type="Int64" Name="connectivity" format="ascii">{" ".join(map(str, range(n)))}</DataArray>'
-        f'<DataArray type="Int64" Name="offsets" format="ascii">{" ".join(map(str, range(1, n + 1)))}</DataArray>'
+        f'<DataArray type="Int64" Name="connectivity" format="ascii">{ints(range(n))}'
+        "</DataArray>"
+        f'<DataArray type="Int64" Name="offsets" format="ascii">{ints(range(1, n + 1))}'
+        "</DataArray>"
         f'<DataArray type="UInt8" Name="types" format="ascii">{" ".join(["1"] * n)}</DataArray>'
         "</Cells>\n"
         f"<PointData>{''.join(data)}</PointData>\n"
