@@ -1,0 +1,90 @@
+"""``mpsbench compare BASELINE CURRENT``: hold a run's metrics against a baseline run.
+
+Prints what got better, worse, appeared or vanished and writes the same as Markdown (for a pull
+request).  Exit status: 0 no regression, 1 a regression beyond a metric's tolerance, 2 a baseline
+or current set that cannot be read or has no record in common with the other.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from mpsbench.cli import UsageError
+from mpsbench.compare import (
+    CompareError,
+    changes_frame,
+    compare,
+    fmt_value,
+    load_results,
+    render_markdown,
+    summary_line,
+)
+
+ORDER = 40
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "compare",
+        help="compare a run's metrics against a baseline run; exit 1 on a regression",
+        description="Match the records of CURRENT to those of BASELINE by case, solver and "
+        "parameters and hold every metric against its tolerance (declared by the case; error-like "
+        "metrics: lower is better, rtol 0.05; timings are shown, never a regression). "
+        "BASELINE and CURRENT are results folders or results.json / results.csv files. "
+        "Exit status: 0 no regression, 1 regression, 2 unreadable or mismatched input.",
+    )
+    p.add_argument("baseline", help="baseline results folder or results.json / results.csv")
+    p.add_argument("current", help="current results folder or results.json / results.csv")
+    p.add_argument("--rtol", type=float, default=None,
+                   help="relative tolerance for every gated metric (overrides the cases' own)")
+    p.add_argument("--atol", type=float, default=None,
+                   help="absolute tolerance added to every metric's (default 1e-12)")
+    p.add_argument("--markdown", default=None, metavar="PATH",
+                   help="where to write the Markdown table (default: compare.md in CURRENT's "
+                   "folder; '-' to skip)")
+    p.set_defaults(func=cmd_compare)
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    for name in ("rtol", "atol"):
+        value = getattr(args, name)
+        if value is not None and not value >= 0:
+            raise UsageError(f"--{name} = {value} is not allowed: a number >= 0")
+    try:
+        base = load_results(args.baseline)
+        cur = load_results(args.current)
+        result = compare(base, cur, rtol=args.rtol, atol=args.atol)
+    except CompareError as exc:
+        raise UsageError(str(exc)) from None
+    print(f"baseline: {args.baseline}\ncurrent:  {args.current}")
+    print(summary_line(result))
+    df = changes_frame(result)
+    if not df.empty:
+        print()
+        print(df.to_markdown(index=False))
+    if not result.timing.empty:
+        print("\ntiming (informational):")
+        print(result.timing.to_markdown(index=False, floatfmt=".4g"))
+    md = render_markdown(result, args.baseline, args.current, (base[0], cur[0]))
+    if args.markdown != "-":
+        cur_path = Path(args.current)
+        target = Path(args.markdown) if args.markdown else (
+            (cur_path if cur_path.is_dir() else cur_path.parent) / "compare.md")
+        try:
+            target.write_text(md)
+            print(f"\nmarkdown: {target}")
+        except OSError as exc:
+            raise UsageError(f"cannot write {target}: {exc}") from None
+    if result.regressions:
+        print(f"\nREGRESSION: {len(result.regressions)} beyond tolerance in "
+              f"{len({c.record for c in result.regressions})} record(s):")
+        for ch in result.regressions:
+            rel = f", {ch.relative:+.1%}" if ch.relative is not None else ""
+            note = f"; {ch.note}" if ch.note else ""
+            values = f"{fmt_value(ch.baseline)} -> {fmt_value(ch.current)}"
+            print(f"  {ch.record}: {ch.metric} {values}{rel} (rule {ch.rule}{note})")
+        return 1
+    print("\nOK: no regression beyond tolerance")
+    return 0

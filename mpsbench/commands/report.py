@@ -1,0 +1,98 @@
+"""``mpsbench report DIR``: re-render a results folder without re-running anything.
+
+Reads the stored records (``<case>/runs/*.json``) and re-writes every case's tables, figures,
+checks and report with the case's current code (so a plotting fix needs no new runs), then the
+top-level results, summary.md, index.html and figures/.  A case whose code is unavailable (or
+with ``--from-files``) is shown from the files an earlier render left.  Works on a folder from
+``mpsbench validate all`` and on a single case folder from ``mpsbench validate CASE``.
+Exit status: 0 rendered, 2 DIR is not a results folder.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from mpsbench.cases import Case, get_case
+from mpsbench.cli import UsageError
+from mpsbench.summary import (
+    ENV_COLUMNS,
+    CaseSection,
+    case_folders,
+    case_from_disk,
+    read_manifest,
+    safe_render_case,
+    solver_order,
+    verdict,
+    write_top_level,
+)
+
+ORDER = 35
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "report",
+        help="re-render summary.md and index.html of a results folder (no runs)",
+        description="Re-render a results folder from its stored records: case tables, figures "
+        "and reports, results.csv/json, summary.md, index.html. Nothing is re-run.",
+    )
+    p.add_argument("dir", help="a folder written by 'mpsbench validate'")
+    p.add_argument("--from-files", action="store_true",
+                   help="do not call the cases' table/figure code; reuse the files on disk")
+    p.set_defaults(func=cmd_report)
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    out = Path(args.dir)
+    if not out.is_dir():
+        raise UsageError(f"{out}: no such folder")
+    manifest = read_manifest(out)
+    found = case_folders(out)
+    if not found:
+        raise UsageError(f"{out}: not a results folder (no runs/ in it or in a case sub-folder); "
+                         "write one with 'mpsbench validate'")
+    single = found[0][1].resolve() == out.resolve()
+    sections: dict[str, CaseSection] = {}
+    params: list[str] = []
+    for name, folder, records in found:
+        case: Case | None = None
+        why = "--from-files"
+        if not args.from_files:
+            try:
+                case = get_case(name)
+            except Exception as exc:  # noqa: BLE001 - shown from files instead
+                why = f"case {name!r} is unavailable: {exc}"
+                print(f"{name}: {why}; using the files on disk", file=sys.stderr)
+        if case is not None:
+            sections[name] = safe_render_case(case, records, folder)
+            params += [p.name for p in case.params]
+        else:
+            sections[name] = case_from_disk(name, records, folder, why)
+    # cases that could not run at all are known only from the manifest
+    for entry in manifest.get("cases", []):
+        name = str(entry.get("name", ""))
+        if name and name not in sections and entry.get("error"):
+            sections[name] = CaseSection(name, name, error=str(entry["error"]))
+    order = [str(e.get("name")) for e in manifest.get("cases", []) if e.get("name") in sections]
+    ordered = [sections[n] for n in order] + [s for n, s in sections.items() if n not in order]
+    _fill_manifest(manifest, ordered)
+    ok = write_top_level(out, ordered, manifest, params, write_results=not single)
+    for sec in ordered:
+        print(f"{verdict(sec.passed)} {sec.name}" + (f": {sec.error}" if sec.error else ""))
+    print(f"{verdict(ok)}: {sum(s.passed for s in ordered)}/{len(ordered)} cases pass")
+    print(f"summary: {out / 'summary.md'}")
+    print(f"index:   {out / 'index.html'}")
+    return 0
+
+
+def _fill_manifest(manifest: dict[str, Any], sections: list[CaseSection]) -> None:
+    """A folder without manifest.json (or an old one): take tier, solvers, env from the records."""
+    records = [r for s in sections for r in s.records]
+    if not records:
+        return
+    manifest.setdefault("tier", ", ".join(sorted({str(r.get("tier")) for r in records})))
+    manifest.setdefault("solvers", solver_order(records))
+    manifest.setdefault("environment", {k: records[0].get(k) for k in ENV_COLUMNS})

@@ -1,0 +1,148 @@
+"""Tiny cases for the validate-all / compare / report tests (seconds, not minutes).
+
+``ToyDiffusion`` runs a real (very small) periodic diffusion problem on a solver through the
+runner, so records carry real wall times and particle counts; ``ToyCounter`` needs no solver.
+Both have knobs (class attributes) the tests turn: ``error_scale`` multiplies the error metric
+(a model change that doubles the error), ``fail_check`` makes a check fail, ``broken_figures``
+makes the figure code raise.  :func:`only_cases` swaps the case registry for the test.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from mpsbench.solvers.reference import ReferenceSolver
+
+from mpsbench.cases import CASES, Case, CaseRun, CheckResult, Param
+from mpsbench.protocol import SOLVERS
+from mpsbench.runner import run
+from mpsbench.testing.problems import diffusion_problem
+
+
+class ToyDiffusion(Case):
+    name = "toy-diffusion"
+    title = "Toy diffusion"
+    description = "Decay of sin(2 pi x) sin(2 pi y) on a periodic unit square, a few steps."
+    params = (
+        Param("laplacian", "xu-jin", "Laplacian model", kind=str,
+              choices=("koshizuka-oka", "xu-jin")),
+        Param("n_side", 8, "particles per side", kind=int, minimum=4),
+        Param("steps", 3, "time steps", kind=int, minimum=1),
+    )
+    tiers = {
+        "smoke": [{"laplacian": ["koshizuka-oka", "xu-jin"]}],
+        "quick": [{"laplacian": ["koshizuka-oka", "xu-jin"], "n_side": [8, 10]}],
+        "paper": [{"laplacian": ["koshizuka-oka", "xu-jin"], "n_side": [8, 10, 12]}],
+    }
+    metrics = {"l2_error": "relative L2 error of phi after the run [-]",
+               "peak": "max |phi| at the end [-]"}
+    compare = {"peak": ("equal", 0.01)}
+    headline = "errors"
+    error_scale = 1.0
+    fail_check = False
+    broken_figures = False
+
+    def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
+        problem = diffusion_problem(params["laplacian"], n_side=params["n_side"], value=None,
+                                    amplitude=0.0)
+        x, y = problem.particles.pos[:, 0], problem.particles.pos[:, 1]
+        res = run(solver, problem, max_steps=params["steps"])
+        assert res.final is not None
+        decay = np.exp(-8 * math.pi**2 * res.time)
+        exact = decay * np.sin(2 * math.pi * x) * np.sin(2 * math.pi * y)
+        phi = res.final.fields["phi"]
+        err = float(np.linalg.norm(phi - exact) / np.linalg.norm(exact)) * self.error_scale
+        return CaseRun({"l2_error": err, "peak": float(np.abs(phi).max())}, [res],
+                       {"phi": phi, "x": x})
+
+    def checks(self, records: list[dict[str, Any]]) -> list[CheckResult]:
+        worst = max(float(r.get("l2_error") or math.inf) for r in records)
+        limit = 1e-9 if self.fail_check else 0.5
+        detail = f"worst {worst:.3g} < {limit:g}"
+        return [CheckResult("l2 error below limit", worst < limit, detail),
+                CheckResult("undecided check", None, "no data to decide")]
+
+    def tables(self, records: list[dict[str, Any]]) -> dict[str, Any]:
+        df = pd.DataFrame(records)
+        return {"errors": df.pivot_table(index="n_side", columns="laplacian", values="l2_error"),
+                "timing": df[["run_id", "wall_time_s"]].set_index("run_id")}
+
+    def figures(self, records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]],
+                outdir: Path) -> list[Path]:
+        if self.broken_figures:
+            raise RuntimeError("figure code is broken")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(4, 3))
+        for rec in records:
+            arr = arrays(rec["run_id"])
+            if arr:
+                ax.plot(arr["x"], arr["phi"], ".", ms=2, label=rec["laplacian"])
+        ax.set_xlabel("x [m]")
+        ax.legend()
+        path = outdir / "profile.png"
+        fig.savefig(path, dpi=60)
+        plt.close(fig)
+        return [path]
+
+    def findings(self, records: list[dict[str, Any]]) -> str:
+        best = min(records, key=lambda r: float(r.get("l2_error") or math.inf))
+        return (f"**{best['laplacian']}** has the smallest error ({best['l2_error']:.3g}).\n\n"
+                "- every run is `tiny`\n- and *fast*")
+
+
+class ToyCounter(Case):
+    name = "toy-counter"
+    title = "Toy counter"
+    description = "No solver: metrics from a formula."
+    params = (Param("k", 1, "a number", kind=int, minimum=1),)
+    tiers = {"smoke": [{"k": [1]}], "quick": [{"k": [1, 2]}], "paper": [{"k": [1, 2, 3]}]}
+    metrics = {"drift": "a drift [-]", "score": "a score [-]"}
+    compare = {"score": ("higher", 0.1)}
+    drift_scale = 1.0
+
+    def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
+        return CaseRun({"drift": 0.01 * params["k"] * self.drift_scale, "score": 10.0,
+                        "label": f"k{params['k']}"})
+
+    def checks(self, records: list[dict[str, Any]]) -> list[CheckResult]:
+        ok = all((r.get("drift") or math.inf) < 1 for r in records)
+        return [CheckResult("drift small", ok, "drift < 1")]
+
+
+@contextmanager
+def only_cases(*cases: Case) -> Iterator[None]:
+    """Make ``cases`` the only registered cases for the duration (the built-ins are hidden)."""
+    saved, scanned = dict(CASES._entries), CASES._scanned
+    CASES._entries.clear()
+    CASES._scanned = True
+    try:
+        for case in cases:
+            CASES.register(case.name, case, replace=True)
+        yield
+    finally:
+        CASES._entries.clear()
+        CASES._entries.update(saved)
+        CASES._scanned = scanned
+
+
+class ToyReference(ReferenceSolver):
+    """The reference backend under another name: a second solver for multi-solver reports."""
+
+    name = "toy-reference"
+    version = "0.0.1"
+
+
+@contextmanager
+def extra_solver() -> Iterator[str]:
+    SOLVERS.register(ToyReference.name, ToyReference, replace=True)
+    try:
+        yield ToyReference.name
+    finally:
+        SOLVERS.unregister(ToyReference.name)

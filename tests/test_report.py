@@ -1,0 +1,104 @@
+"""``mpsbench report DIR``: re-render a results folder from its records, never re-running."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from mpsbench import cli
+from mpsbench.cases import CASES
+from tests.fake_cases import ToyCounter, ToyDiffusion, only_cases
+
+Toys = tuple[ToyDiffusion, ToyCounter]
+
+
+@pytest.fixture
+def toys() -> Iterator[Toys]:
+    diffusion, counter = ToyDiffusion(), ToyCounter()
+    with only_cases(diffusion, counter):
+        yield diffusion, counter
+
+
+@pytest.fixture
+def folder(toys: Toys, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    out = tmp_path / "r"
+    assert cli.main(["validate", "all", "--tier", "smoke", "--out", str(out), "--jobs", "1"]) == 0
+
+    def no_runs(self: Any, params: dict[str, Any], solver: str) -> None:
+        raise AssertionError("mpsbench report must not run anything")
+
+    for cls in (ToyDiffusion, ToyCounter):
+        monkeypatch.setattr(cls, "execute", no_runs)
+    return out
+
+
+def test_report_rerenders_without_running(folder: Path, monkeypatch: pytest.MonkeyPatch,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    results = (folder / "results.json").read_text()
+    for name in ("summary.md", "index.html"):
+        (folder / name).unlink()
+    shutil.rmtree(folder / "figures")
+    # the case's current code is used: a new finding shows up without new runs
+    monkeypatch.setattr(ToyDiffusion, "findings", lambda self, records: "A **new** finding.")
+    assert cli.main(["report", str(folder)]) == 0
+    summary = (folder / "summary.md").read_text()
+    assert "A **new** finding." in summary and "PASS (2/2 cases pass)" in summary
+    page = (folder / "index.html").read_text()
+    assert "A <strong>new</strong> finding." in page
+    assert page.count('src="data:image/png;base64,') == 1
+    assert (folder / "figures" / "toy-diffusion" / "profile.png").is_file()
+    assert json.loads((folder / "results.json").read_text()) == json.loads(results)
+    assert "tier **smoke**" in summary  # from manifest.json
+    assert "summary:" in capsys.readouterr().out
+
+
+def test_report_from_files_when_the_case_is_gone(folder: Path,
+                                                 capsys: pytest.CaptureFixture[str]) -> None:
+    CASES.unregister("toy-diffusion")
+    assert cli.main(["report", str(folder)]) == 0
+    assert "case 'toy-diffusion' is unavailable" in capsys.readouterr().err
+    summary = (folder / "summary.md").read_text()
+    assert "has the smallest error" in summary  # findings.md
+    assert "**PASS** l2 error below limit" in summary  # checks.json
+    assert "Table **errors**" in summary  # tables/*.csv
+    assert 'src="data:image/png;base64,' in (folder / "index.html").read_text()
+
+
+def test_report_from_files_option(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    def broken(*args: Any) -> None:
+        raise AssertionError("--from-files must not call the case's code")
+
+    for name in ("tables", "figures", "checks", "findings"):
+        monkeypatch.setattr(ToyDiffusion, name, broken)
+    assert cli.main(["report", str(folder), "--from-files"]) == 0
+    assert "PASS (2/2 cases pass)" in (folder / "summary.md").read_text()
+
+
+def test_report_keeps_unavailable_cases_from_the_manifest(toys: Toys, tmp_path: Path) -> None:
+    CASES.register("broken", "mpsbench.validations.no_such_module:CASE", replace=True)
+    out = tmp_path / "r"
+    assert cli.main(["validate", "all", "--tier", "smoke", "--out", str(out), "--jobs", "1"]) == 1
+    (out / "summary.md").unlink()
+    assert cli.main(["report", str(out)]) == 0
+    summary = (out / "summary.md").read_text()
+    assert "## broken (`broken`): FAIL" in summary and "FAIL (2/3 cases pass)" in summary
+
+
+def test_report_on_a_single_case_folder(toys: Toys, tmp_path: Path) -> None:
+    out = tmp_path / "one"
+    assert cli.main(["validate", "toy-counter", "--tier", "smoke", "--out", str(out)]) == 0
+    (out / "index.html").unlink()
+    assert cli.main(["report", str(out)]) == 0
+    assert (out / "index.html").is_file() and not (out / "toy-counter").exists()
+
+
+def test_report_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli.main(["report", str(tmp_path / "missing")]) == 2
+    assert "no such folder" in capsys.readouterr().err
+    assert cli.main(["report", str(tmp_path)]) == 2
+    assert "not a results folder" in capsys.readouterr().err
