@@ -27,13 +27,16 @@ from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 import mpsbench
 from mpsbench.cases import Case, get_case
 from mpsbench.protocol import Status
+
+if TYPE_CHECKING:
+    from mpsbench.executors import Executor
 
 COMMON_COLUMNS = (
     "case", "solver", "solver_version", "tier", "run_id", "status", "reason", "wall_time_s",
@@ -247,12 +250,16 @@ def run_tasks(
     force: bool = False,
     progress: ProgressFn | None = None,
     task_dir: Callable[[Task], str | Path] | None = None,
+    executor: Executor | None = None,
+    retry: Callable[[dict[str, Any]], bool] | None = None,
 ) -> list[dict[str, Any]]:
     """Run every task not yet done (all with ``force``); return all records in task order.
 
     ``task_dir(task)`` picks the folder of each task's ``runs/`` (default ``outdir`` for all);
     ``mpsbench validate all`` uses it to run every case through one pool and one progress count
-    while each case keeps its own folder.
+    while each case keeps its own folder.  ``executor`` (:mod:`mpsbench.executors`: local
+    processes, a dask cluster) runs the runs instead of the built-in pool (``jobs`` is then
+    ignored).  ``retry(record)`` true re-runs a run whose record exists (e.g. a failed one).
     """
     tasks = list(tasks)
     outdir = Path(outdir)
@@ -267,6 +274,8 @@ def run_tasks(
     done = 0
     for task in tasks:
         rec = None if force else load_record(folder[task.run_id] / "runs" / f"{task.run_id}.json")
+        if rec is not None and retry is not None and retry(rec):
+            rec = None
         if rec is not None:
             records[task.run_id] = rec
             done += 1
@@ -274,7 +283,13 @@ def run_tasks(
                 progress(done, len(tasks), rec, True)
         else:
             todo.append(task)
-    if jobs <= 1 or len(todo) <= 1:
+    if executor is not None:
+        for task, rec in executor.run(todo, lambda t: folder[t.run_id], env):
+            records[task.run_id] = rec
+            done += 1
+            if progress:
+                progress(done, len(tasks), rec, False)
+    elif jobs <= 1 or len(todo) <= 1:
         for task in todo:
             rec = execute_task(task, str(folder[task.run_id]), env)
             records[task.run_id] = rec

@@ -1,0 +1,329 @@
+"""``mpsbench study run STUDY.toml`` and ``mpsbench study status DIR``.
+
+Output folder of a study::
+
+    OUT/study.toml              a copy of the study file as it was run
+    OUT/plan.json               every planned run (case, solver, tier, parameters, run id)
+    OUT/<case>/runs/*.json      one record per finished run (atomic writes)
+    OUT/<case>/...              results, tables, figures, report.md (as 'mpsbench validate')
+    OUT/tolerances.json         the study's tolerance checks
+
+Running the same study again skips every run whose record exists, so an interrupted study
+(Ctrl-C, a killed process, a lost machine) resumes where it stopped.  Two ``study run`` on the
+same folder at once are refused (a lock file, released by the system when the process dies).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from mpsbench.cli import UsageError
+
+ORDER = 35
+
+PLAN_FILE = "plan.json"
+LOCK_FILE = ".study.lock"
+
+
+def register(sub: Any) -> None:
+    p = sub.add_parser(
+        "study",
+        help="run a study file (cases x solvers x parameter grid) and show its progress",
+        description="Run parameter studies described in TOML files (see docs/studies.md).",
+    )
+    ssub = p.add_subparsers(dest="study_command", metavar="ACTION")
+    r = ssub.add_parser(
+        "run", help="run every run of a study not done yet, then write the reports",
+        description="Check the study file, then run every run whose record does not exist yet "
+        "(an interrupted study resumes), write the reports and hold the tolerances.",
+    )
+    r.add_argument("study", metavar="STUDY.toml", help="the study file")
+    r.add_argument("--jobs", type=int, default=None,
+                   help="parallel runs: worker processes (local) or workers of the local dask "
+                   "cluster (default: the file's 'jobs', else 1)")
+    r.add_argument("--executor", choices=("local", "dask"), default=None,
+                   help="where runs execute (default: the file's 'executor', else local)")
+    r.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="dask scheduler address (implies --executor dask); without it "
+                   "--executor dask starts a local cluster")
+    r.add_argument("--out", default=None, metavar="DIR",
+                   help="output folder (default: the file's 'out', else reports/studies/NAME)")
+    r.add_argument("--force", action="store_true", help="re-run runs whose record exists")
+    r.add_argument("--retry-failed", action="store_true",
+                   help="re-run runs recorded as failed (not diverged ones)")
+    r.add_argument("--dry-run", action="store_true",
+                   help="check the file and print the planned runs, run nothing")
+    r.add_argument("--no-report", action="store_true",
+                   help="keep the records only: skip tables, figures and report.md")
+    r.set_defaults(func=cmd_run)
+    s = ssub.add_parser(
+        "status", help="show done / failed / pending runs of a study folder",
+        description="Count the runs of a study folder (or of a study file's default folder) "
+        "by state: done (completed or diverged), failed, pending.",
+    )
+    s.add_argument("target", metavar="DIR|STUDY.toml", help="a study output folder or study file")
+    s.add_argument("--out", default=None, metavar="DIR",
+                   help="with a study file: its output folder if not the default")
+    s.add_argument("--json", action="store_true", help="print JSON")
+    s.add_argument("--list", choices=("failed", "pending", "all"), default=None,
+                   help="also list the run ids in this state")
+    s.set_defaults(func=cmd_status)
+    p.set_defaults(func=lambda args: _missing_action(p))
+
+
+def _missing_action(parser: argparse.ArgumentParser) -> int:
+    parser.print_help(sys.stderr)
+    return 2
+
+
+# --------------------------------------------------------------------------- run
+
+
+@contextlib.contextmanager
+def study_lock(out: Path) -> Iterator[None]:
+    """An exclusive lock on ``OUT/.study.lock`` (POSIX); the OS drops it if the process dies."""
+    out.mkdir(parents=True, exist_ok=True)
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not POSIX: no lock
+        yield
+        return
+    fh = open(out / LOCK_FILE, "a+")  # noqa: SIM115 - held for the whole study
+    try:
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.seek(0)
+            holder = fh.read().strip() or "?"
+            raise UsageError(
+                f"{out} is in use by another 'mpsbench study run' (pid {holder}); "
+                "wait for it or pick another --out"
+            ) from None
+        fh.seek(0)
+        fh.truncate()
+        fh.write(str(os.getpid()))
+        fh.flush()
+        yield
+    finally:
+        fh.close()
+
+
+def write_plan(out: Path, spec: Any, tasks: list[Any]) -> None:
+    from mpsbench.study import atomic_write_text
+
+    plan = {
+        "study": spec.name,
+        "source": str(spec.path),
+        "tier": spec.tier,
+        "cases": list(spec.cases),
+        "solvers": list(spec.solvers),
+        "n_runs": len(tasks),
+        "runs": [
+            {"case": t.case, "solver": t.solver, "tier": t.tier, "run_id": t.run_id,
+             "params": t.params}
+            for t in tasks
+        ],
+    }
+    atomic_write_text(out / PLAN_FILE, json.dumps(plan, indent=1, default=str))
+    if spec.source:
+        atomic_write_text(out / "study.toml", spec.source)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from mpsbench.executors import ExecutorError, make_executor
+    from mpsbench.reporting import check_lines, write_case_outputs
+    from mpsbench.study import atomic_write_text, print_progress, run_tasks
+    from mpsbench.studyfile import check_tolerances, load_study
+
+    spec = load_study(args.study)
+    jobs = args.jobs if args.jobs is not None else (spec.jobs or 1)
+    if jobs < 1:
+        raise UsageError(f"--jobs = {jobs} is not allowed: an integer >= 1")
+    scheduler = args.scheduler or spec.scheduler
+    executor_name = args.executor or ("dask" if args.scheduler else spec.executor) or "local"
+    if scheduler and executor_name != "dask":
+        raise UsageError("--scheduler goes with --executor dask")
+    out = Path(args.out) if args.out else spec.default_out()
+    tasks = spec.tasks()
+    cases = {c.name: c for c in spec.case_objects()}
+    by_case = {name: sum(t.case == name for t in tasks) for name in cases}
+    summary = ", ".join(f"{name} {n}" for name, n in by_case.items())
+    print(f"study {spec.name}: {len(tasks)} runs ({summary}; tier {spec.tier}; solvers "
+          f"{', '.join(spec.solvers)}) -> {out}", file=sys.stderr)
+    if args.dry_run:
+        for t in tasks:
+            print(t.run_id)
+        return 0
+
+    def folder(task: Any) -> Path:
+        return out / task.case
+
+    def retry(record: dict[str, Any]) -> bool:
+        return bool(args.retry_failed) and record.get("status") == "failed"
+
+    with study_lock(out):
+        write_plan(out, spec, tasks)
+        try:
+            executor = make_executor(executor_name, jobs=jobs, scheduler=scheduler)
+        except (ExecutorError, ValueError) as exc:
+            raise UsageError(str(exc)) from None
+        print(f"executor: {executor.describe()}", file=sys.stderr)
+        with executor:
+            try:
+                records = run_tasks(
+                    tasks, out, force=args.force, progress=print_progress(),
+                    executor=executor, task_dir=folder, retry=retry,
+                )
+            except ExecutorError as exc:
+                raise UsageError(str(exc)) from None
+        failed_runs = [r for r in records if r.get("status") == "failed"]
+        any_check_failed = False
+        if not args.no_report:
+            for name, case in cases.items():
+                case_records = [r for r in records if r.get("case") == name]
+                checks = write_case_outputs(case, case_records, out / name)
+                for line in check_lines(checks):
+                    print(f"{name}: {line}")
+                any_check_failed |= any(c.passed is False for c in checks)
+        tol = check_tolerances(spec, records)
+        if tol:
+            atomic_write_text(out / "tolerances.json", json.dumps(
+                [{"name": c.name, "passed": c.passed, "detail": c.detail} for c in tol], indent=1))
+            for line in check_lines(tol):
+                print(line)
+            any_check_failed |= any(c.passed is False for c in tol)
+    counts = _count(records)
+    print(f"study {spec.name}: {counts['completed']} completed, {counts['diverged']} diverged, "
+          f"{counts['failed']} failed -> {out}")
+    for r in failed_runs[:10]:
+        print(f"  failed {r['run_id']}: {r.get('reason', '')}")
+    return 1 if failed_runs or any_check_failed else 0
+
+
+def _count(records: list[dict[str, Any]]) -> dict[str, int]:
+    out = {"completed": 0, "diverged": 0, "failed": 0}
+    for r in records:
+        out[r.get("status", "failed") if r.get("status") in out else "failed"] += 1
+    return out
+
+
+# --------------------------------------------------------------------------- status
+
+
+def study_status(out: Path, tasks: list[dict[str, Any]] | None = None) -> dict[str, Any]:
+    """Runs of a study folder by state.
+
+    ``tasks`` (dicts with case and run_id) defaults to ``OUT/plan.json``; without a plan only
+    the records found are counted and ``pending`` is None.
+    """
+    from mpsbench.study import load_record
+
+    if tasks is None:
+        plan_path = out / PLAN_FILE
+        if plan_path.is_file():
+            try:
+                tasks = json.loads(plan_path.read_text())["runs"]
+            except (OSError, ValueError, KeyError, TypeError):
+                raise UsageError(f"{plan_path} is unreadable: run the study again") from None
+    state: dict[str, list[dict[str, Any]]] = {
+        "completed": [], "diverged": [], "failed": [], "pending": []
+    }
+    planned_ids: set[str] = set()
+    record_files = sorted(out.glob("runs/*.json")) + sorted(out.glob("*/runs/*.json"))
+    temp_files = len(list(out.glob("runs/.*.tmp")) + list(out.glob("*/runs/.*.tmp")))
+    unreadable = 0
+    if tasks is not None:
+        for t in tasks:
+            planned_ids.add(t["run_id"])
+            path = out / t["case"] / "runs" / f"{t['run_id']}.json"
+            rec = load_record(path)
+            if rec is None:
+                unreadable += path.exists()
+                state["pending"].append({"run_id": t["run_id"], "case": t["case"]})
+            else:
+                _file(state, rec)
+    extra = 0
+    for path in record_files:
+        if path.stem in planned_ids:
+            continue
+        rec = load_record(path)
+        if rec is None:
+            unreadable += 1
+        elif tasks is None:
+            _file(state, rec)
+        else:
+            extra += 1
+    done = len(state["completed"]) + len(state["diverged"])
+    return {
+        "folder": str(out),
+        "planned": len(tasks) if tasks is not None else None,
+        "done": done,
+        "completed": len(state["completed"]),
+        "diverged": len(state["diverged"]),
+        "failed": len(state["failed"]),
+        "pending": len(state["pending"]) if tasks is not None else None,
+        "not_in_plan": extra,
+        "unreadable": unreadable,
+        "temp_files": temp_files,
+        "runs": state,
+    }
+
+
+def _file(state: dict[str, list[dict[str, Any]]], rec: dict[str, Any]) -> None:
+    status = rec.get("status")
+    key = status if status in ("completed", "diverged") else "failed"
+    state[key].append({"run_id": rec.get("run_id", ""), "case": rec.get("case", ""),
+                       "reason": rec.get("reason", "")})
+
+
+def cmd_status(args: argparse.Namespace) -> int:
+    target = Path(args.target)
+    tasks = None
+    if target.is_file() and target.suffix == ".toml":
+        from mpsbench.studyfile import load_study
+
+        spec = load_study(target)
+        out = Path(args.out) if args.out else spec.default_out()
+        tasks = [{"case": t.case, "run_id": t.run_id} for t in spec.tasks()]
+    elif target.is_dir():
+        out = target
+    else:
+        raise UsageError(f"{target}: not a study folder or a .toml study file")
+    st = study_status(out, tasks)
+    if st["planned"] is None and not (st["done"] or st["failed"]):
+        raise UsageError(f"{out}: no {PLAN_FILE} and no run records: not a study folder")
+    if args.json:
+        print(json.dumps(st, indent=1))
+        return 0
+    if st["planned"] is not None:
+        print(f"{out}: {st['planned']} runs planned")
+    else:
+        print(f"{out}: no {PLAN_FILE}; counting the records found (pending unknown)")
+    print(f"  done     {st['done']:>5}  ({st['completed']} completed, {st['diverged']} diverged)")
+    print(f"  failed   {st['failed']:>5}")
+    if st["pending"] is not None:
+        print(f"  pending  {st['pending']:>5}")
+    if st["not_in_plan"]:
+        print(f"  ({st['not_in_plan']} records of runs no longer in the plan)")
+    if st["unreadable"]:
+        print(f"  ({st['unreadable']} unreadable record files, treated as pending)")
+    if st["temp_files"]:
+        print(f"  ({st['temp_files']} temporary files of interrupted writes, ignored)")
+    shown = ("failed", "pending") if args.list == "all" else (args.list,) if args.list else ()
+    if not args.list:
+        for r in st["runs"]["failed"][:10]:
+            print(f"  failed: {r['run_id']}: {r['reason']}")
+        if st["failed"] > 10:
+            print(f"  ... {st['failed'] - 10} more (--list failed)")
+    for key in shown:
+        for r in st["runs"][key]:
+            reason = f": {r['reason']}" if r.get("reason") else ""
+            print(f"  {key}: {r['run_id']}{reason}")
+    return 0
