@@ -29,13 +29,19 @@ G = 9.81  # m/s^2
 
 
 def periodic_lattice(
-    n_side: int = 12, l0: float = 0.01, amplitude: float = 0.0, seed: int = 0
+    n_side: int = 12,
+    l0: float = 0.01,
+    amplitude: float = 0.0,
+    seed: int = 0,
+    squeeze: float = 1.0,
 ) -> tuple[Particles, Box]:
     """A fully periodic ``n_side`` x ``n_side`` fluid lattice, optionally jittered.
 
-    ``amplitude`` is the jitter half-width as a fraction of ``l0``.
+    ``amplitude`` is the jitter half-width as a fraction of ``l0``; ``squeeze`` < 1 puts the
+    particles ``squeeze * l0`` apart (a uniformly compressed fluid when n0 comes from the ideal
+    lattice of spacing l0).
     """
-    pos, box = lattice_pairs(n_side, l0)
+    pos, box = lattice_pairs(n_side, squeeze * l0)
     p = Particles.from_positions(pos)
     if amplitude:
         jitter(p, amplitude * l0, seed)
@@ -88,17 +94,20 @@ def periodic_flow_problem(
     amplitude: float = 0.1,
     seed: int = 2,
     velocity: float = 0.0,
+    squeeze: float = 1.0,
     models: Models | None = None,
     dt: float | None = None,
     **physics: Any,
 ) -> Problem:
     """WC-MPS flow of a (jittered) fluid filling a fully periodic box, no gravity by default.
 
+    ``squeeze``: see :func:`periodic_lattice`.
+
     ``velocity`` > 0 gives every particle a seeded random velocity with components uniform in
     [-velocity, velocity] plus a uniform drift (velocity/2, -velocity/4), so the total momentum
     is not zero.  ``physics`` overrides :class:`~mpsbench.config.FlowPhysics` fields.
     """
-    p, box = periodic_lattice(n_side, l0, amplitude, seed)
+    p, box = periodic_lattice(n_side, l0, amplitude, seed, squeeze)
     if velocity:
         rng = np.random.default_rng(seed + 1000)
         p.vel[:] = rng.uniform(-velocity, velocity, size=(p.n, 2))
