@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 from collections.abc import Iterator
 from pathlib import Path
@@ -39,6 +40,9 @@ def test_all_pass_writes_one_report_folder(toys: object, tmp_path: Path,
             assert (out / case / name).is_file(), (case, name)
     assert (out / "figures" / "toy-diffusion" / "profile.png").is_file()
     assert not (out / "runs").exists()
+    mask = os.umask(0)
+    os.umask(mask)
+    assert (out / "index.html").stat().st_mode & 0o777 == 0o666 & ~mask  # shareable, not 0600
 
     records = json.loads((out / "results.json").read_text())
     assert {r["case"] for r in records} == {"toy-diffusion", "toy-counter"}
