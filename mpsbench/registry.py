@@ -69,6 +69,8 @@ class Registry(Generic[T]):
     validate: Callable[[Any], None] | None = None
     _entries: dict[str, Entry] = field(default_factory=dict)
     _scanned: bool = False
+    ignored: list[Entry] = field(default_factory=list)
+    """Entry points not used because the name was taken (each with the reason in ``error``)."""
 
     def register(
         self,
@@ -91,11 +93,19 @@ class Registry(Generic[T]):
             self._scanned = True
             return
         self._scanned = True
+        self.ignored = []
         for ep in entry_points(group=self.group):
-            if ep.name in self._entries:
-                continue  # built-ins win; a plugin cannot silently shadow them
             dist = getattr(ep.dist, "name", "?") if ep.dist is not None else "?"
-            self._entries[ep.name] = Entry(ep.name, ep.value, origin=f"entry-point:{dist}")
+            origin = f"entry-point:{dist}"
+            if ep.name in self._entries:
+                # built-ins (and the first plugin of a name) win; the loser is reported
+                taken = self._entries[ep.name].origin
+                self.ignored.append(Entry(
+                    ep.name, ep.value, origin=origin,
+                    error=f"ignored: the name is taken by {taken} {self.kind} {ep.name!r}",
+                ))
+                continue
+            self._entries[ep.name] = Entry(ep.name, ep.value, origin=origin)
 
     def names(self) -> list[str]:
         self._scan_entry_points()

@@ -347,11 +347,17 @@ class _Validator:
                 self.fail(key, f"{_fmt(value)} is not allowed: {param.allowed()}{unit}")
                 return None
         registry = _model_registry(params[0].name) if params else None
-        if registry is not None and isinstance(out, str) and out not in registry:
-            names = registry.names()
-            self.fail(key, f"unknown {registry.kind} {out!r}" + _suggest(out, names)
-                      + "; known: " + ", ".join(names))
-            return None
+        if registry is not None and isinstance(out, str):
+            if out not in registry:
+                names = registry.names()
+                self.fail(key, f"unknown {registry.kind} {out!r}" + _suggest(out, names)
+                          + "; known: " + ", ".join(names))
+                return None
+            try:
+                registry.get(out)  # a plugin that does not load fails here, not in every run
+            except PluginLoadError as exc:
+                self.fail(key, str(exc))
+                return None
         return out
 
     def _params_table(self, data: dict[str, Any], section: str, cases: list[Case], *,

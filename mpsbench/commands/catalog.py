@@ -42,8 +42,15 @@ def models_catalog() -> dict[str, list[dict[str, Any]]]:
                     "error": error,
                 }
             )
+        rows += [_ignored_row(e) for e in reg.ignored]
         out[key] = rows
     return out
+
+
+def _ignored_row(entry: Any) -> dict[str, Any]:
+    """A plugin entry point that lost its name to another entry: listed, never loaded."""
+    return {"name": entry.name, "description": "", "source": "", "origin": entry.origin,
+            "available": False, "error": f"{entry.origin}: {entry.error}"}
 
 
 def solvers_catalog() -> list[dict[str, Any]]:
@@ -65,6 +72,9 @@ def solvers_catalog() -> list[dict[str, Any]]:
         except Exception as exc:  # noqa: BLE001 - an unavailable backend is listed, not fatal
             row.update(available=False, description=entry.description, error=str(exc))
         rows.append(row)
+    for ignored in SOLVERS.ignored:
+        rows.append({"name": ignored.name, "origin": ignored.origin, "available": False,
+                     "description": "", "error": f"{ignored.origin}: {ignored.error}"})
     return rows
 
 
