@@ -28,7 +28,7 @@ import mpsbench.registry as registry_module
 from mpsbench import cli
 from mpsbench.cases import CASES
 from mpsbench.commands.catalog import models_catalog, solvers_catalog
-from mpsbench.config import Models
+from mpsbench.config import ConfigError, Models
 from mpsbench.kernels import WEIGHTS, WF2
 from mpsbench.operators import GRADIENTS, LAPLACIANS, KoshizukaOka
 from mpsbench.protocol import SOLVERS
@@ -321,3 +321,56 @@ def test_example_plugin_in_a_fresh_venv(tmp_path: Path) -> None:
     shutil.copytree(PLUGIN / "tests", tests)
     _run([py, "-m", "pytest", "-q", "-p", "no:cacheprovider", str(tests)], cwd=work, env=env)
     assert sys.executable != py
+
+
+# --------------------------------------------------------------------------- run_case
+
+
+def test_run_case_by_names_and_with_overrides(tmp_path: Path) -> None:
+    from mpsbench.plugin_testing import run_case
+    from tests.test_studyfile import TOY, register_toy
+
+    register_toy()
+    try:
+        result = run_case(TOY, "reference", tier="smoke", re_ratio=[2.0, 3.0], l0="1/20",
+                          out=tmp_path, report=True)
+        assert len(result.records) == 4  # smoke: 2 weights x 2 radii
+        assert {r["l0"] for r in result.records} == {0.05}
+        assert [c.name for c in result.checks] == ["toy ran"]
+        result.assert_ok()
+        assert (tmp_path / "report.md").is_file() and result.outdir == tmp_path
+        assert len(result.metric("error")) == 4
+
+        bad = run_case(TOY, "reference", explode=True, weight="wf1")
+        assert bad.outdir is None and len(bad.failed_runs) == 1
+        with pytest.raises(AssertionError, match="RuntimeError: boom"):
+            bad.assert_ok()
+        with pytest.raises(ConfigError, match="has no parameter 'lapalcian'"):
+            run_case(TOY, "reference", lapalcian="xu-jin")
+        with pytest.raises(ConfigError, match="re_ratio = 0.5 is not allowed"):
+            run_case(TOY, "reference", re_ratio=0.5)
+    finally:
+        CASES.unregister(TOY)
+
+
+def test_run_case_with_an_unregistered_solver_class_and_case() -> None:
+    """A solver class and a case object nobody registered: registered for the call only."""
+    from mpsbench.solvers.reference import ReferenceSolver
+
+    from mpsbench.plugin_testing import run_case
+    from tests.test_studyfile import StudyToy
+
+    class MySolver(ReferenceSolver):
+        name = "my-solver"
+
+    class MyCase(StudyToy):
+        name = "my-case"
+
+    result = run_case(MyCase(), MySolver, weight="wf2")
+    assert [r["solver"] for r in result.records] == ["my-solver"]
+    assert result.records[0]["case"] == "my-case" and result.failed_runs == []
+    assert "my-solver" not in SOLVERS and "my-case" not in CASES
+    # an instance: fresh copies per run, under a free name when its own is taken
+    result = run_case(MyCase(), ReferenceSolver(), weight="wf1")
+    assert result.solver == "reference-under-test" and not result.failed_runs
+    assert "reference-under-test" not in SOLVERS
