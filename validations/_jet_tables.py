@@ -1,0 +1,233 @@
+"""Tables and plain-word findings of the water-jet study (records -> pandas / Markdown)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pandas as pd
+
+NOISE_MEASURES = {
+    "noise_spatial": "spatial pressure noise",
+    "noise_temporal": "temporal stagnation-pressure noise",
+    "density_drift_mean": "mean number-density drift",
+}
+# parameters that only matter when the stabilization is on: left out of the model key
+_STAB_ONLY = ("stabilization", "alpha_s", "stabilization_walls")
+_SKIP = {"case", "solver", "solver_version", "tier", "run_id", "status", "reason"}
+
+
+def completed(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [r for r in records if r.get("status") == "completed"]
+
+
+def resolution(r: dict[str, Any]) -> int:
+    return int(round(r["b"] / r["l0"]))
+
+
+def is_acceptance(r: dict[str, Any]) -> bool:
+    """The acceptance model: stabilization on, pgm1, WF2, l0 = b/20, no collision model."""
+    return (
+        bool(r.get("stabilization")) and r.get("gradient") == "pgm1" and r.get("weight") == "wf2"
+        and resolution(r) == 20 and not r.get("collision_distance")
+        and is_default_stabilization(r)
+    )
+
+
+def fmt(v: Any, digits: int = 3) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "n/a"
+    if isinstance(v, float):
+        return f"{v:.{digits}g}"
+    return str(v)
+
+
+DEFAULT_ALPHA_S = 0.01
+
+
+def is_default_stabilization(r: dict[str, Any]) -> bool:
+    """alpha_s 0.01 with wall and dummy particles in the sum (method.md 5 defaults)."""
+    return r.get("alpha_s", DEFAULT_ALPHA_S) == DEFAULT_ALPHA_S and r.get(
+        "stabilization_walls", True) is not False
+
+
+def variant(r: dict[str, Any]) -> str:
+    """How a stabilized run departs from the default stabilization ('' if it does not)."""
+    if not r.get("stabilization") or is_default_stabilization(r):
+        return ""
+    parts = []
+    if r.get("alpha_s", DEFAULT_ALPHA_S) != DEFAULT_ALPHA_S:
+        parts.append(f"alpha_s {r['alpha_s']:g}")
+    if r.get("stabilization_walls", True) is False:
+        parts.append("no wall neighbours in the stabilization")
+    return ", ".join(parts)
+
+
+def label(r: dict[str, Any]) -> str:
+    cd = r.get("collision_distance") or 0.0
+    coll = f", alpha_c {cd:g}" if cd else ""
+    var = variant(r)
+    return f"{r['gradient']}, {r['weight'].upper()}, b/{resolution(r)}{coll}" + (
+        f" [{var}]" if var else "")
+
+
+def _model_key(r: dict[str, Any], params: list[str]) -> tuple[Any, ...]:
+    return tuple((k, repr(r.get(k))) for k in params if k not in _STAB_ONLY)
+
+
+def _params(records: list[dict[str, Any]]) -> list[str]:
+    from .water_jet import CASE
+
+    return [p.name for p in CASE.params if any(p.name in r for r in records)]
+
+
+def pairs(records: list[dict[str, Any]]) -> list[tuple[dict[str, Any], dict[str, Any]]]:
+    """(off, on) record pairs that differ only in the stabilization settings."""
+    done = completed(records)
+    params = _params(done)
+    off = {_model_key(r, params): r for r in done if not r.get("stabilization")}
+    out = []
+    for r in done:
+        if r.get("stabilization"):
+            k = _model_key(r, params)
+            if k in off:
+                out.append((off[k], r))
+    out.sort(key=lambda p: (resolution(p[0]), p[0]["gradient"], p[0]["weight"],
+                            p[0].get("collision_distance") or 0.0, label(p[1])))
+    return out
+
+
+def factor(off: Any, on: Any) -> float:
+    """Reduction factor off / on (> 1: the stabilization reduces the measure)."""
+    if off is None or on is None or not on or not math.isfinite(off) or not math.isfinite(on):
+        return math.nan
+    return float(off) / float(on)
+
+
+def noise_table(records: list[dict[str, Any]]) -> pd.DataFrame:
+    rows = []
+    for off, on in pairs(records):
+        row: dict[str, Any] = {"model": label(on)}
+        for m in NOISE_MEASURES:
+            row[f"{m} off"] = off.get(m)
+            row[f"{m} on"] = on.get(m)
+            row[f"{m} off/on"] = factor(off.get(m), on.get(m))
+        row["penetrations off"] = off.get("penetrations")
+        row["penetrations on"] = on.get("penetrations")
+        rows.append(row)
+    return pd.DataFrame(rows).set_index("model") if rows else pd.DataFrame()
+
+
+PLATE_COLUMNS = ("cp_rms_error", "cp_max_error", "cp_stagnation", "sheet_speed", "penetrations",
+                 "noise_spatial", "noise_temporal", "density_drift_mean", "density_drift_max",
+                 "cp_stagnation_drift", "wall_time_s")
+
+
+def run_table(records: list[dict[str, Any]]) -> pd.DataFrame:
+    rows = []
+    for r in sorted(completed(records), key=lambda r: (resolution(r), r["gradient"], r["weight"],
+                                                      r.get("collision_distance") or 0.0,
+                                                      bool(r["stabilization"]))):
+        row = {"model": label(r), "stabilization": "on" if r["stabilization"] else "off"}
+        row.update({c: r.get(c) for c in PLATE_COLUMNS})
+        rows.append(row)
+    return pd.DataFrame(rows).set_index(["model", "stabilization"]) if rows else pd.DataFrame()
+
+
+def collision_groups(records: list[dict[str, Any]]) -> dict[tuple[Any, ...], list[dict[str, Any]]]:
+    """Runs that differ only in the collision distance (at least two distances)."""
+    done = completed(records)
+    params = [p for p in _params(done) if p != "collision_distance"]
+    groups: dict[tuple[Any, ...], list[dict[str, Any]]] = {}
+    for r in done:
+        key = tuple((k, repr(r.get(k))) for k in params)
+        groups.setdefault(key, []).append(r)
+    return {
+        k: sorted(v, key=lambda r: r.get("collision_distance") or 0.0)
+        for k, v in groups.items()
+        if len({r.get("collision_distance") for r in v}) >= 2
+    }
+
+
+def collision_table(records: list[dict[str, Any]]) -> pd.DataFrame:
+    rows = []
+    for group in collision_groups(records).values():
+        for r in group:
+            rows.append({
+                "model": f"{r['gradient']}, {r['weight'].upper()}, b/{resolution(r)}",
+                "stabilization": "on" if r["stabilization"] else "off",
+                "alpha_c": r.get("collision_distance") or 0.0,
+                **{c: r.get(c) for c in ("noise_spatial", "noise_temporal", "density_drift_mean",
+                                         "density_drift_max", "penetrations", "cp_rms_error",
+                                         "cp_stagnation", "sheet_speed")},
+            })
+    if not rows:
+        return pd.DataFrame()
+    return pd.DataFrame(rows).set_index(["model", "stabilization", "alpha_c"])
+
+
+def tables(records: list[dict[str, Any]]) -> dict[str, pd.DataFrame]:
+    out = {"noise": noise_table(records), "plate_cp": run_table(records)}
+    coll = collision_table(records)
+    if not coll.empty:
+        out["collision"] = coll
+    return out
+
+
+def _effect(name: str, off: Any, on: Any) -> str:
+    f = factor(off, on)
+    if not math.isfinite(f):
+        return f"{name}: n/a"
+    if f > 1.05:
+        verdict = f"reduced by a factor {f:.2f}"
+    elif f < 1 / 1.05:
+        verdict = f"NOT reduced: it grows by a factor {1 / f:.2f}"
+    else:
+        verdict = "about unchanged"
+    return f"{name} {fmt(off)} -> {fmt(on)} ({verdict})"
+
+
+def findings(records: list[dict[str, Any]]) -> str:
+    lines: list[str] = []
+    prs = [p for p in pairs(records) if not p[0].get("collision_distance")]
+    if prs:
+        lines += ["**What the stabilization does to the noise** (off -> on; factor = off/on):", ""]
+        for off, on in prs:
+            parts = [_effect(NOISE_MEASURES[m], off.get(m), on.get(m)) for m in NOISE_MEASURES]
+            pen = f"penetrations {off.get('penetrations')} -> {on.get('penetrations')}"
+            lines.append(f"- {label(on)}: " + "; ".join(parts) + f"; {pen}.")
+        lines.append("")
+        lines += ["**What it does to the plate pressure** (Cp RMS error over 0 <= x/b <= 2, "
+                  "stagnation Cp, sheet speed / U at 1.5-2.5 b; exact: 0, 1, 1):", ""]
+        for off, on in prs:
+            lines.append(
+                f"- {label(on)}: off {fmt(off.get('cp_rms_error'))}, "
+                f"{fmt(off.get('cp_stagnation'))}, {fmt(off.get('sheet_speed'))}; "
+                f"on {fmt(on.get('cp_rms_error'))}, {fmt(on.get('cp_stagnation'))}, "
+                f"{fmt(on.get('sheet_speed'))}."
+            )
+        lines.append("")
+    groups = collision_groups(records)
+    if groups:
+        lines += ["**What the collision distance alpha_c does** (0 = no collision model):", ""]
+        for group in groups.values():
+            r0 = group[0]
+            head = (f"{r0['gradient']}, {r0['weight'].upper()}, b/{resolution(r0)}, "
+                    f"stabilization {'on' if r0['stabilization'] else 'off'}")
+            cells = [
+                f"alpha_c {r.get('collision_distance') or 0:g}: noise {fmt(r.get('noise_spatial'))}"
+                f" / {fmt(r.get('noise_temporal'))}, drift max {fmt(r.get('density_drift_max'))}, "
+                f"penetrations {r.get('penetrations')}, Cp error {fmt(r.get('cp_rms_error'))}"
+                for r in group
+            ]
+            lines.append(f"- {head}: " + "; ".join(cells) + ".")
+        lines.append("")
+    acc = [r for r in completed(records) if is_acceptance(r)]
+    for r in acc:
+        ok = (r.get("cp_rms_error") or math.inf) < 0.1 and r.get("penetrations") == 0
+        lines.append(
+            f"**Acceptance run** ({label(r)}, stabilization on): Cp RMS error "
+            f"{fmt(r.get('cp_rms_error'))} (limit 0.1), penetrations {r.get('penetrations')}: "
+            f"{'met' if ok else 'NOT met'}."
+        )
+    return "\n".join(lines)

@@ -1,0 +1,258 @@
+"""Plane water jet impinging on a rigid flat plate (method.md 6c).
+
+A 2-D jet of width b and speed U (no gravity) enters through an inflow segment ``nozzle_gap``
+b above a plate of length ``plate_length`` b normal to it, spreads into two sheets along the plate
+and leaves through outflow zones near the plate ends (geometry: :mod:`._jet_geometry`).  The
+plate pressure is averaged over a steady window [t_end - t_window, t_end] and compared with the
+free-streamline solution (:mod:`._jet_metrics`).  The study asks what the stabilization
+(method.md 5), the pressure-gradient model, the collision distance, the weighting function and
+the resolution do to the plate pressure and to the pressure noise.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mpsbench.cases import Case, CaseRun, CheckResult, Param
+from mpsbench.config import FlowPhysics, Models
+from mpsbench.operators import lattice_constants
+from mpsbench.particles import Kind
+from mpsbench.probes import Callback, PointPressure
+from mpsbench.runner import run
+
+from . import _jet_figures as figs
+from . import _jet_tables as tabs
+from ._jet_geometry import JetGeometry, build_problem, plate_points
+from ._jet_metrics import (
+    TABLE_CP,
+    TABLE_XB,
+    FrameMeasures,
+    frame_measures,
+    free_streamline_cp,
+    penetrations,
+    pooled,
+    temporal_noise,
+)
+
+RHO0 = 1000.0  # kg/m^3, water
+NU = 1.0e-6  # m^2/s, water
+CP_RANGE = 2.0  # Cp error over 0 <= x/b <= CP_RANGE
+SENSOR_MAX, SENSOR_STEP = 2.5, 0.1  # plate sensors at x/b = -2.5 .. 2.5, step 0.1
+SENSOR_RADIUS = 2.0  # kernel radius of the plate sensors, in l0
+SAMPLE = 0.05  # plate pressure / penetration sampling interval, in b/U
+FRAME = 0.2  # noise / drift snapshot interval inside the window, in b/U
+NOISE_REGION = (2.0, 1.0)  # noise and drift over |x| <= 2 b, y <= 1 b (the impingement zone)
+SHEET = (1.5, 2.5)  # sheet speed measured over 1.5 <= |x|/b <= 2.5
+
+B, L0_COARSE, L0_FINE = 0.1, 0.01, 0.005  # default b; l0 = b/10 and b/20
+
+
+class WaterJetCase(Case):
+    name = "water-jet"
+    title = "Water jet impinging on a flat plate: plate pressure and pressure noise"
+    description = __doc__ or ""
+    params = (
+        Param("b", B, "jet width", "m", minimum=0.0, exclusive_minimum=True),
+        Param("U", 1.0, "jet speed", "m/s", minimum=0.0, exclusive_minimum=True),
+        Param("nozzle_gap", 2.0, "nozzle (inlet line) height above the plate", "b", minimum=1.0),
+        Param("plate_length", 6.0, "plate length (centred on the jet)", "b", minimum=6.0),
+        Param("l0", L0_FINE, "particle spacing (b/l0 must be a whole number)", "m",
+              minimum=0.0, exclusive_minimum=True),
+        Param("gradient", "pgm1", "pressure-gradient model", kind=str,
+              choices=("pgm1", "pgm2", "pgm3")),
+        Param("stabilization", True, "stabilization (method.md 5) on/off", kind=bool),
+        Param("alpha_s", 0.01, "stabilization coefficient", "", minimum=0.0, maximum=1.0),
+        Param("stabilization_walls", True,
+              "wall and dummy particles are neighbours in the stabilization sum", kind=bool),
+        Param("collision_distance", 0.0, "collision distance alpha_c (0 = no collision model)",
+              "l0", minimum=0.0, maximum=0.99),
+        Param("weight", "wf2", "weighting function", kind=str, choices=("wf1", "wf2")),
+        Param("laplacian", "xu-jin", "Laplacian model (viscous term)", kind=str),
+        Param("re_ratio", 2.1, "r_e / l0", "", minimum=1.0, maximum=10.0),
+        Param("c0_ratio", 10.0, "sound speed c0 / U", "", minimum=1.0),
+        Param("cfl", 0.2, "Courant number of dt = cfl l0 / (c0 + |u|max)", "",
+              minimum=0.0, exclusive_minimum=True, maximum=1.0),
+        Param("t_end", 7.0, "end time", "b/U", minimum=0.0, exclusive_minimum=True),
+        Param("t_window", 3.0, "averaging window before t_end", "b/U",
+              minimum=0.0, exclusive_minimum=True),
+    )
+    metrics = {
+        "cp_rms_error": "RMS of Cp - Cp_exact over the plate sensors at 0 <= x/b <= 2 (-)",
+        "cp_max_error": "max |Cp - Cp_exact| over 0 <= x/b <= 2 (-)",
+        "cp_stagnation": "time-mean Cp at x = 0 (exact 1) (-)",
+        "noise_spatial": "RMS of (p_i - kernel mean of neighbours' p) / (rho U^2/2) over "
+        "non-surface fluid in |x| <= 2b, y <= b, pooled over the window's snapshots (-)",
+        "noise_temporal": "std / mean of the stagnation pressure over the window (-)",
+        "density_drift_mean": "mean |n_i/n0 - 1| over interior fluid in |x| <= 2b, y <= b (-)",
+        "density_drift_max": "max |n_i/n0 - 1| over the same particles and snapshots (-)",
+        "penetrations": "max over samples (every 0.05 b/U, whole run) of the number of fluid "
+        "particles below the plate's wall line (count)",
+        "cp_stagnation_drift": "(second-half mean - first-half mean) / mean of the stagnation "
+        "Cp over the window: how steady the window is (-)",
+        "sheet_speed": "mean |u_x| / U of the sheets at 1.5 <= |x|/b <= 2.5 (exact 1) (-)",
+        "b_over_l0": "resolution b / l0 (-)",
+    }
+    tiers = {
+        # CI: the acceptance model at b/10, stabilization off and on, a short run
+        "smoke": [{"l0": [L0_COARSE], "stabilization": [False, True],
+                   "t_end": [5.0], "t_window": [2.0]}],
+        # the most informative subset: the acceptance pair at b/20 (+ the stabilization without
+        # wall neighbours), gradient x stabilization at b/10, a collision sweep for pgm1 at b/10
+        "quick": [
+            {"l0": [L0_FINE], "stabilization": [False, True]},
+            {"l0": [L0_FINE], "stabilization_walls": [False]},
+            {"l0": [L0_COARSE], "gradient": ["pgm1", "pgm2", "pgm3"],
+             "stabilization": [False, True]},
+            {"l0": [L0_COARSE], "collision_distance": [0.5, 0.7, 0.9],
+             "stabilization": [False, True]},
+        ],
+        "paper": [
+            {"stabilization": [False, True], "gradient": ["pgm1", "pgm2", "pgm3"],
+             "collision_distance": [0.0, 0.5, 0.7, 0.9], "weight": ["wf1", "wf2"],
+             "l0": [L0_COARSE, L0_FINE], "t_end": [10.0], "t_window": [5.0]},
+        ],
+    }
+
+    # ------------------------------------------------------------------ one run
+    def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
+        b, speed, l0 = params["b"], params["U"], params["l0"]
+        if params["t_window"] >= params["t_end"]:
+            raise ValueError(
+                f"t_window = {params['t_window']} b/U must be shorter than t_end = "
+                f"{params['t_end']} b/U"
+            )
+        geo = JetGeometry(b, l0, params["nozzle_gap"] * b, params["plate_length"] * b)
+        cd = params["collision_distance"]
+        physics = FlowPhysics(
+            rho0=RHO0, nu=NU, gravity=(0.0, 0.0), c0=params["c0_ratio"] * speed,
+            collision=cd > 0, collision_distance=cd if cd > 0 else 0.8,
+            stabilization=params["stabilization"], alpha_s=params["alpha_s"],
+            stabilization_walls=params["stabilization_walls"],
+        )
+        models = Models(weight=params["weight"], laplacian=params["laplacian"],
+                        gradient=params["gradient"], re_ratio=params["re_ratio"])
+        problem = build_problem(geo, speed, physics, models, cfl=params["cfl"])
+        scale = b / speed  # s
+        t_end = params["t_end"] * scale
+        t_start = t_end - params["t_window"] * scale
+        q = 0.5 * RHO0 * speed**2  # Pa
+        re = params["re_ratio"] * l0
+        n0 = lattice_constants(params["weight"], params["re_ratio"], l0)[0]
+        region = (NOISE_REGION[0] * b, NOISE_REGION[1] * b)
+
+        def frame(s: Any) -> tuple[FrameMeasures, float]:
+            st = s.state()
+            fm = frame_measures(st.pos, st.pressure, st.kind, l0=l0, weight=params["weight"],
+                                re=re, n0=n0, q=q, beta=physics.surface_beta, region=region)
+            ax = np.abs(st.pos[:, 0]) / b
+            sheet = (st.kind == Kind.FLUID) & (ax >= SHEET[0]) & (ax <= SHEET[1])
+            u = float(np.abs(st.vel[sheet, 0]).mean() / speed) if sheet.any() else np.nan
+            return fm, u
+
+        n_frames = int(round(params["t_window"] / FRAME))
+        sensors = plate_points(geo, SENSOR_MAX, SENSOR_STEP)
+        plate = PointPressure("plate", sensors, SENSOR_RADIUS * l0, every=SAMPLE * scale)
+        frames = Callback("frames", frame, at=t_start + np.arange(n_frames + 1) * FRAME * scale)
+        pen = Callback("penetration", lambda s: penetrations(s.state().pos, s.state().kind,
+                                                             geo.half_plate),
+                       every=SAMPLE * scale)
+        result = run(solver, problem, end_time=t_end, probes=[plate, frames, pen])
+
+        metrics: dict[str, Any] = {"b_over_l0": round(b / l0, 6)}
+        arrays: dict[str, np.ndarray] = {}
+        t = np.asarray(plate.t)
+        cp = plate.array() / q if plate.values else np.zeros((0, len(sensors)))
+        mid = len(sensors) // 2
+        arrays["hist_t_over_T"] = t / scale
+        arrays["hist_cp0"] = cp[:, mid] if len(cp) else np.zeros(0)
+        win = t >= t_start * (1 - 1e-9)
+        metrics["penetrations"] = int(max(pen.values)) if pen.values else 0
+        if result.ok and win.sum() >= 4:
+            mean = cp[win].mean(axis=0)
+            xb = sensors[mid:, 0] / b
+            cp_sym = 0.5 * (mean[mid:] + mean[mid::-1])
+            std_sym = 0.5 * (cp[win].std(axis=0)[mid:] + cp[win].std(axis=0)[mid::-1])
+            arrays.update(plate_xb=xb, plate_cp=cp_sym, plate_cp_std=std_sym)
+            inside = xb <= CP_RANGE + 1e-9
+            err = cp_sym[inside] - free_streamline_cp(xb[inside])
+            stag = cp[win, mid]
+            half = len(stag) // 2
+            metrics.update(
+                cp_rms_error=float(np.sqrt(np.mean(err**2))),
+                cp_max_error=float(np.max(np.abs(err))),
+                cp_stagnation=float(stag.mean()),
+                noise_temporal=temporal_noise(stag),
+                cp_stagnation_drift=float((stag[half:].mean() - stag[:half].mean()) / stag.mean())
+                if stag.mean() != 0 else np.nan,
+            )
+            fms = [v[0] for v in frames.values]
+            metrics.update(pooled(fms))
+            metrics["sheet_speed"] = float(np.nanmean([v[1] for v in frames.values]))
+        else:
+            for key in ("cp_rms_error", "cp_max_error", "cp_stagnation", "noise_temporal",
+                        "cp_stagnation_drift", "noise_spatial", "density_drift_mean",
+                        "density_drift_max", "sheet_speed"):
+                metrics[key] = np.nan
+        if result.final is not None:
+            f = result.final
+            arrays.update(snap_pos=(f.pos / b).astype(np.float32),
+                          snap_cp=(f.pressure / q).astype(np.float32),
+                          snap_kind=f.kind.astype(np.int8),
+                          snap_t_over_T=np.array([result.time / scale]))
+        return CaseRun(metrics=metrics, results=[result], arrays=arrays)
+
+    # ------------------------------------------------------------------ checks and report
+    def checks(self, records: list[dict[str, Any]]) -> list[CheckResult]:
+        out = [_analytic_check()]
+        acc = [r for r in tabs.completed(records) if tabs.is_acceptance(r)]
+        if not acc:
+            out.append(CheckResult(
+                "acceptance: stabilization on, pgm1, WF2, l0 = b/20", None,
+                "no completed run of that model in this tier (run --tier quick or paper)"))
+        for r in acc:
+            ok = r["cp_rms_error"] is not None and r["cp_rms_error"] < 0.1 and r[
+                "penetrations"] == 0
+            out.append(CheckResult(
+                "acceptance: stabilization on, pgm1, WF2, l0 = b/20",
+                bool(ok),
+                f"Cp RMS error over 0 <= x/b <= 2 = {tabs.fmt(r['cp_rms_error'])} (< 0.1 "
+                f"needed), penetrations = {r['penetrations']} (0 needed), collision_distance "
+                f"{r['collision_distance']}, run {r['run_id']}"))
+        stab = [r for r in tabs.completed(records) if r.get("stabilization")]
+        if stab:
+            worst = max(stab, key=lambda r: r.get("penetrations") or 0)
+            out.append(CheckResult(
+                "no particle crosses the plate with the stabilization on",
+                (worst.get("penetrations") or 0) == 0,
+                f"max penetrations over {len(stab)} stabilized runs = "
+                f"{worst.get('penetrations')} ({worst['run_id']})"))
+        return out
+
+    def tables(self, records: list[dict[str, Any]]) -> dict[str, Any]:
+        return tabs.tables(records)
+
+    def figures(self, records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]],
+                outdir: Path) -> list[Path]:
+        return figs.figures(records, arrays, outdir)
+
+    def findings(self, records: list[dict[str, Any]]) -> str:
+        return tabs.findings(records)
+
+
+def _analytic_check() -> CheckResult:
+    """The free-streamline solution against method.md's table and its momentum balance."""
+    table_err = float(np.max(np.abs(free_streamline_cp(TABLE_XB) - TABLE_CP)))
+    x = np.linspace(0.0, 20.0, 200001)
+    integral = 2.0 * float(np.trapezoid(free_streamline_cp(x), x))
+    ok = table_err < 6e-4 and abs(integral - 2.0) < 1e-6
+    return CheckResult(
+        "free-streamline reference solution", ok,
+        f"max |Cp - table| = {table_err:.1e} at x/b = 0..2 (table rounded to 1e-3); "
+        f"integral of Cp d(x/b) = {integral:.7f} (momentum balance: 2)")
+
+
+CASE = WaterJetCase()
