@@ -1,9 +1,10 @@
 """Neighbour upkeep for the reference backend: a skinned pair list and static wall pairs.
 
 The pair list is built at ``r_max + skin`` and reused until some particle has moved more than
-``skin / 2`` since the build (then no pair within ``r_max`` can be missing).  Boundary-boundary
-pairs that move rigidly together (same velocity, not inflow) never change, so their
-contribution to the number density is computed once and the pairs are dropped from the list.
+``skin / 2`` since the build (then no pair within ``r_max`` can be missing).  Pairs of a dummy
+particle with another boundary particle that move rigidly together (same velocity, not inflow)
+never change and never enter the pressure gradient, so their contribution to the number density
+is computed once and the pairs are dropped from the list.
 """
 
 from __future__ import annotations
@@ -49,8 +50,13 @@ class SkinnedPairs:
     def _build(self, p: Particles, weight: WeightFunction, re: float) -> None:
         full = build_pairs(p.pos, self.r_max + self.skin, self.box)
         ki, kj = p.kind[full.i], p.kind[full.j]
-        boundary = (ki != Kind.FLUID) & (kj != Kind.FLUID) & (ki != Kind.INFLOW) & (kj != Kind.INFLOW)
+        solid_i = (ki != Kind.FLUID) & (ki != Kind.INFLOW)
+        boundary = solid_i & (kj != Kind.FLUID) & (kj != Kind.INFLOW)
         rigid = boundary & np.all(p.vel[full.i] == p.vel[full.j], axis=1)
+        # Only pairs with a dummy particle are static: a pair of two wall particles stays in the
+        # list, because the pressure gradient needs it (pmin of a wall particle in PGM2 is the
+        # minimum over its wall neighbours too).
+        rigid &= (ki == Kind.DUMMY) | (kj == Kind.DUMMY)
         # Static pairs: their weights never change, so add them to n once per build.
         self.static_n = full.sum_sym(np.where(rigid, weight.w(full.r, re), 0.0))
         keep = ~rigid
