@@ -23,7 +23,7 @@ import numpy as np
 from mpsbench.config import FlowPhysics, Inflow, Models, Region, TimeStepping
 from mpsbench.kernels import WEIGHTS
 from mpsbench.operators import GRADIENTS, LAPLACIANS
-from mpsbench.particles import Kind, Particles
+from mpsbench.particles import Box, Kind, Particles
 from mpsbench.protocol import (
     Capabilities,
     Problem,
@@ -52,12 +52,6 @@ def fresh_solver(spec: SolverSpec) -> Solver:
     if isinstance(spec, (str, type)):
         return make_solver(spec)
     return copy.deepcopy(spec)
-
-
-def solver_class(spec: SolverSpec) -> Any:
-    if isinstance(spec, str):
-        return get_solver_class(spec)
-    return spec if isinstance(spec, type) else type(spec)
 
 
 def capabilities_of(spec: SolverSpec) -> Capabilities:
@@ -345,7 +339,7 @@ def _capability_probes() -> Iterator[tuple[str, Problem]]:
     yield "boundary 'outflow'", dataclasses.replace(p, outflows=(Region((0.5, 0.0), (0.6, 0.1)),))
     yield (
         "boundary 'inflow'",
-        dataclasses.replace(p, inflow=Inflow((0.0, 0.3), (0.04, 0.3), (0.0, -0.1), layers=2)),
+        dataclasses.replace(p, inflow=Inflow((0.0, 0.12), (0.04, 0.12), (0.0, -0.1), layers=2)),
     )
     yield "boundary 'periodic-y'", _periodic_y_probe(models)
     for feature, physics in (
@@ -382,12 +376,9 @@ def _periodic_y_probe(models: Models) -> Problem:
     parts = p.particles.copy()
     parts.pos[:] = parts.pos[:, ::-1]
     parts.vel[:] = parts.vel[:, ::-1]
-    for a, b in (("wall_nx", "wall_ny"),):
-        if a in parts.fields and b in parts.fields:
-            parts.fields[a], parts.fields[b] = parts.fields[b].copy(), parts.fields[a].copy()
+    nx, ny = parts.fields["wall_nx"].copy(), parts.fields["wall_ny"].copy()
+    parts.fields["wall_nx"], parts.fields["wall_ny"] = ny, nx
     lo, hi = p.box.lo, p.box.hi
-    from mpsbench.particles import Box
-
     box = Box((lo[1], lo[0]), (hi[1], hi[0]), (False, True))
     return dataclasses.replace(p, particles=parts, box=box, name="channel-y")
 
