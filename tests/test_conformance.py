@@ -7,6 +7,7 @@ import json
 import subprocess
 import sys
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -293,8 +294,10 @@ def test_the_kit_does_not_leak_numpy_error_settings() -> None:
 
 
 def test_cli_check_reference_exits_0() -> None:
+    script = Path(sys.executable).with_name("mpsbench")  # the installed console script
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "mpsbench.cli"]
     out = subprocess.run(
-        [sys.executable, "-m", "mpsbench.cli", "check", "reference"],
+        [*command, "check", "reference"],
         capture_output=True,
         text=True,
         timeout=300,
