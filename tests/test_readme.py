@@ -41,7 +41,7 @@ def test_starts_with_the_two_setup_commands() -> None:
 def test_ci_runs_the_readme_test_command() -> None:
     ci = (Path(__file__).resolve().parents[1] / ".ci" / "run").read_text()
     assert 'pip install -e ".[test]"' in ci
-    assert re.search(r"^\s*pytest\s*$", ci, flags=re.M)
+    assert re.search(r"^\s*(check\s+)?pytest\s*$", ci, flags=re.M)
 
 
 def test_model_table_matches_registries() -> None:
