@@ -108,6 +108,7 @@ class LocalExecutor(Executor):
             return
         # Each worker runs single-threaded numerics; the pool gives the parallelism.
         pool = ProcessPoolExecutor(max_workers=self.jobs)
+        interrupted = True
         try:
             pending: dict[Future[dict[str, Any]], Task] = {
                 pool.submit(execute_task, t, str(folder(t)), env): t for t in tasks
@@ -121,9 +122,26 @@ class LocalExecutor(Executor):
                     except Exception as exc:  # noqa: BLE001 - a dead worker fails its run only
                         rec = _write_crash(task, folder, exc, env)
                     yield task, rec
+            interrupted = False
         finally:
-            # Interrupted (Ctrl-C, generator closed): drop queued runs, keep finished records.
+            if interrupted:
+                # Ctrl-C or the consumer stopped: end the workers now rather than let them
+                # finish the runs already handed to them (minutes each for a real case).  A run
+                # cut short leaves no record (writes are atomic) and runs again next time.
+                _terminate_workers(pool)
             pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _terminate_workers(pool: ProcessPoolExecutor) -> None:
+    # ProcessPoolExecutor has no public way to stop busy workers before Python 3.14
+    # (terminate_workers); its worker table is the documented-in-source ``_processes``.
+    stop = getattr(pool, "terminate_workers", None)
+    if callable(stop):
+        stop()
+        return
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        if proc.is_alive():
+            proc.terminate()
 
 
 # --------------------------------------------------------------------------- dask

@@ -204,9 +204,17 @@ RUNNER = (
 )
 
 
-@pytest.mark.parametrize("jobs", [1, 2])
-def test_kill_9_then_resume(tmp_path: Path, jobs: int) -> None:
-    """SIGKILL a running study once some records exist; the rerun completes the grid."""
+@pytest.mark.parametrize(
+    ("jobs", "sig"),
+    [(1, signal.SIGKILL), (2, signal.SIGKILL), (2, signal.SIGINT)],
+    ids=["kill-9-inline", "kill-9-pool", "ctrl-c-pool"],
+)
+def test_interrupt_then_resume(tmp_path: Path, jobs: int, sig: signal.Signals) -> None:
+    """Kill (or Ctrl-C) a running study once some records exist; the rerun completes the grid.
+
+    SIGKILL goes to the whole process group (the study and its workers, as when a machine or a
+    job scheduler ends it); SIGINT too, as a terminal's Ctrl-C does.
+    """
     study = tmp_path / "kill.toml"
     study.write_text(
         f'case = "{TOY}"\ntier = "smoke"\n[params]\nsleep = 0.15\n'
@@ -229,9 +237,18 @@ def test_kill_9_then_resume(tmp_path: Path, jobs: int) -> None:
         else:
             pytest.fail("the study wrote no records in 60 s")
     finally:
-        os.killpg(proc.pid, signal.SIGKILL)  # the study and its worker processes
-        proc.wait(timeout=30)
-    assert proc.returncode == -signal.SIGKILL
+        t_signal = time.monotonic()
+        os.killpg(proc.pid, sig)
+        try:
+            proc.wait(timeout=30)
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGKILL)
+    if sig == signal.SIGKILL:
+        assert proc.returncode == -signal.SIGKILL
+    else:  # Ctrl-C: a prompt exit with status 130, the busy workers stopped
+        assert proc.returncode == 130
+        assert time.monotonic() - t_signal < 10
     done_before = len(load_records(out / TOY))
     assert 5 <= done_before < n_grid
 
