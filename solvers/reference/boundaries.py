@@ -93,9 +93,14 @@ def mirror_velocity(p: Particles, weight: WeightFunction, re: float, box: Box) -
     """Boundary velocities extrapolated so the wall velocity holds on the wall line.
 
     Each boundary particle is reflected across its wall line (``wall_nx/ny``, ``wall_dist``);
-    the fluid velocity there is a Shepard (kernel-weighted) average, and the boundary particle
-    gets u_b = 2 u_wall - u_fluid(mirror point): linear extrapolation through the wall.
-    Boundary particles without wall geometry keep their prescribed velocity.
+    the fluid velocity u_f at the mirror point is interpolated from the fluid particles within
+    ``re`` by a kernel-weighted linear least-squares fit (moving least squares, exact for a
+    linear field), and the boundary particle gets u_b = 2 u_wall - u_f: linear extrapolation
+    through the wall.  A plain Shepard average is only zeroth-order: near a wall its support is
+    one-sided and it returns the fluid velocity about r_e/2 inside the fluid, which puts the
+    no-slip point O(r_e) away from the wall line.  Where the fit is ill-posed (fewer than three
+    neighbours, all in a line) the Shepard average is used; without any fluid neighbour the
+    prescribed velocity is kept.  Boundary particles without wall geometry keep theirs too.
     """
     vel = p.vel.copy()
     wall_vel = p.vel  # a boundary particle's vel is its prescribed wall velocity
@@ -112,14 +117,55 @@ def mirror_velocity(p: Particles, weight: WeightFunction, re: float, box: Box) -
     fpos, mpos, boxsize = _common_frame(p.pos[fluid], mirror, re, box)
     ftree = cKDTree(fpos, boxsize=boxsize)
     sdm = ftree.sparse_distance_matrix(cKDTree(mpos, boxsize=boxsize), re, output_type="coo_matrix")
-    w = weight.w(np.maximum(sdm.data, 1e-12 * re), re)
-    den = np.bincount(sdm.col, w, len(bnd))
-    ok = den > 0
+    u_mirror = _linear_fit(
+        p.pos[fluid[sdm.row]] - mirror[sdm.col], sdm.col, sdm.data, p.vel[fluid[sdm.row]],
+        len(bnd), weight, re, box,
+    )
     for ax in range(2):
-        num = np.bincount(sdm.col, w * p.vel[fluid[sdm.row], ax], len(bnd))
-        u_mirror = np.where(ok, num / np.where(ok, den, 1.0), wall_vel[bnd, ax])
-        vel[bnd, ax] = 2.0 * wall_vel[bnd, ax] - u_mirror
+        vel[bnd, ax] = 2.0 * wall_vel[bnd, ax] - np.where(
+            np.isnan(u_mirror[:, ax]), wall_vel[bnd, ax], u_mirror[:, ax]
+        )
     return vel
+
+
+def _linear_fit(
+    d: FloatArray, col: NDArray[np.intp], r: FloatArray, values: FloatArray, n: int,
+    weight: WeightFunction, re: float, box: Box,
+) -> FloatArray:
+    """Value at n points of the weighted linear fit a + g.d to ``values`` (NaN: no data).
+
+    ``d`` (M, 2) are the offsets of the data points from their target point ``col``, ``r``
+    their lengths.  The weight is floored at r = 0.05 re so that a singular weight (WF1) at a
+    data point on the target point stays finite; any positive weight keeps the fit exact for
+    linear fields.
+    """
+    if box.any_periodic:
+        box.minimum_image(d)
+    s = d / re  # offsets in units of re keep the moment matrix well scaled
+    w = weight.w(np.maximum(r, 0.05 * re), re)
+    basis = np.column_stack([np.ones(len(w)), s[:, 0], s[:, 1]])
+    moment = np.zeros((n, 3, 3))
+    for a in range(3):
+        for b in range(a, 3):
+            moment[:, a, b] = np.bincount(col, w * basis[:, a] * basis[:, b], n)
+            moment[:, b, a] = moment[:, a, b]
+    count = np.bincount(col, None, n)
+    den = moment[:, 0, 0]
+    out = np.full((n, 2), np.nan)
+    has = den > 0
+    rhs = np.zeros((n, 3, 2))
+    for a in range(3):
+        for ax in range(2):
+            rhs[:, a, ax] = np.bincount(col, w * basis[:, a] * values[:, ax], n)
+    out[has] = rhs[has, 0, :] / den[has, None]  # Shepard average (zeroth order)
+    # the linear fit where the moment matrix is well conditioned
+    det = np.linalg.det(moment)
+    scale = np.where(has, den, 1.0) ** 3
+    good = has & (count >= 3) & (np.abs(det) > 1e-8 * scale)
+    if good.any():
+        coef = np.linalg.solve(moment[good], rhs[good])
+        out[good] = coef[:, 0, :]
+    return out
 
 
 def _common_frame(
