@@ -21,6 +21,8 @@ import json
 import os
 import platform
 import shutil
+import signal
+import sys
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -107,7 +109,8 @@ class LocalExecutor(Executor):
                 yield task, execute_task(task, str(folder(task)), env)
             return
         # Each worker runs single-threaded numerics; the pool gives the parallelism.
-        pool = ProcessPoolExecutor(max_workers=self.jobs)
+        pool = ProcessPoolExecutor(max_workers=self.jobs, initializer=_die_with_parent,
+                                   initargs=(os.getpid(),))
         interrupted = True
         try:
             pending: dict[Future[dict[str, Any]], Task] = {
@@ -130,6 +133,24 @@ class LocalExecutor(Executor):
                 # cut short leaves no record (writes are atomic) and runs again next time.
                 _terminate_workers(pool)
             pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _die_with_parent(parent: int) -> None:
+    """In a worker: end when the study process ends, even by SIGKILL (Linux; elsewhere a no-op).
+
+    Without this, workers of a killed study go on with the runs already handed to them.
+    """
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # the parent died before the call: nobody will signal us
+        os._exit(1)
 
 
 def _terminate_workers(pool: ProcessPoolExecutor) -> None:

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -329,12 +331,26 @@ def test_cli_status_of_nothing(tmp_path: Path) -> None:
     assert cli.main(["study", "status", str(tmp_path / "missing")]) == 2
 
 
-def test_cli_lock_refuses_a_second_run(tmp_path: Path) -> None:
+def test_cli_lock_refuses_a_second_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     fcntl = pytest.importorskip("fcntl")
     out = tmp_path / "out"
     out.mkdir()
-    with open(out / ".study.lock", "w") as fh:
-        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+    # POSIX record locks never conflict within one process: hold it from another one
+    holder = subprocess.Popen(
+        [sys.executable, "-c", "import fcntl, sys, time; fh = open(sys.argv[1], 'a+'); "
+         "fcntl.lockf(fh.fileno(), fcntl.LOCK_EX); fh.write('4242'); fh.flush(); "
+         "print('locked', flush=True); time.sleep(60)", str(out / ".study.lock")],
+        stdout=subprocess.PIPE, text=True,
+    )
+    try:
+        assert holder.stdout is not None and holder.stdout.readline().strip() == "locked"
         path = write(tmp_path, GOOD)
         assert cli.main(["study", "run", str(path), "--out", str(out)]) == 2
-    assert not (out / "plan.json").exists()
+        assert "in use by another 'mpsbench study run' (pid 4242)" in capsys.readouterr().err
+        assert not (out / "plan.json").exists()
+    finally:
+        holder.kill()
+        holder.wait()
+    assert fcntl is not None

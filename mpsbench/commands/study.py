@@ -88,7 +88,12 @@ def _missing_action(parser: argparse.ArgumentParser) -> int:
 
 @contextlib.contextmanager
 def study_lock(out: Path) -> Iterator[None]:
-    """An exclusive lock on ``OUT/.study.lock`` (POSIX); the OS drops it if the process dies."""
+    """An exclusive lock on ``OUT/.study.lock`` (POSIX); the OS drops it if the process dies.
+
+    A POSIX record lock (``lockf``), not ``flock``: it belongs to this process only, so worker
+    processes forked from it (which inherit the file descriptor) do not keep the folder locked
+    after the study process was killed.
+    """
     out.mkdir(parents=True, exist_ok=True)
     try:
         import fcntl
@@ -98,7 +103,7 @@ def study_lock(out: Path) -> Iterator[None]:
     fh = open(out / LOCK_FILE, "a+")  # noqa: SIM115 - held for the whole study
     try:
         try:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.lockf(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             fh.seek(0)
             holder = fh.read().strip() or "?"
