@@ -110,7 +110,10 @@ class Particles:
     ) -> Particles:
         pos = np.asarray(pos, dtype=float).reshape(-1, 2)
         n = len(pos)
-        kinds = np.full(n, int(kind), np.int8) if isinstance(kind, Kind) else np.asarray(kind)
+        if isinstance(kind, Kind):
+            kinds = np.full(n, int(kind), np.int8)
+        else:  # a copy: the new particles must not share the caller's array
+            kinds = np.array(kind, dtype=np.int8).reshape(n)
         return cls(pos.copy(), np.zeros((n, 2)), kinds, np.zeros(n))
 
     def __len__(self) -> int:

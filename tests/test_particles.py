@@ -89,6 +89,10 @@ def test_particles_container() -> None:
     sub = p.subset(np.array([1, 3]))
     np.testing.assert_array_equal(sub.fields["phi"], [1.0, 3.0])
     np.testing.assert_array_equal(sub.pos, [[2.0, 3.0], [6.0, 7.0]])
+    kinds = np.array([0, 1, 2, 0], dtype=np.int8)
+    r = Particles.from_positions(np.zeros((4, 2)), kinds)
+    r.kind[0] = Kind.DUMMY
+    assert kinds[0] == 0  # not aliased to the caller's array
     with pytest.raises(ValueError, match="field 'bad' has length 2, expected 4"):
         Particles(p.pos, p.vel, p.kind, p.pressure, {"bad": np.zeros(2)})
 
