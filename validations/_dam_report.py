@@ -142,6 +142,17 @@ def findings(records: list[dict[str, Any]]) -> str:
                 f"{_fmt(r.get('height_rms_error'))} (offset "
                 f"{_fmt(r.get('height_mean_offset'), '+.3f')})."
             )
+        held = [r for r in ko if _num(r.get("height_mean_offset")) > 0.1]
+        if held:
+            walls = all(r.get("stabilization") and r.get("stabilization_walls") for r in held)
+            lines.append("")
+            lines.append(
+                f"The column height stays well above the experiment (H* offset > 0.1) in "
+                f"{', '.join(label(r) for r in held)}: the water is held at the back wall"
+                + (" by the stabilization summing over wall particles (it acts as wall friction; "
+                   "compare stabilization_walls = false)" if walls else "")
+                + ", so a small front error there is partly a damped front."
+            )
         lines.append("")
     lob = [r for r in records if r.get("geometry") == LOB and _ok(r)]
     if lob:
