@@ -267,3 +267,30 @@ def test_validate_cli_smoke_tier(tmp_path) -> None:  # noqa: ANN001
     df = _check_outputs(out, 2)
     on = df[df["stabilization"]].iloc[0]
     assert on["penetrations"] == 0
+
+
+def test_diagnostics_survive_outflow_removal() -> None:
+    """Removing outflow particles keeps the other particles' number density and surface flags
+    (they used to be zeroed until the next step, so probes saw n = 0 everywhere)."""
+    from mpsbench.config import Region
+    from mpsbench.particles import Box
+    from mpsbench.protocol import Problem
+
+    l0 = 0.01
+    fluid = block(0.0, 0.0, 12, 12, l0)
+    problem = Problem(
+        particles=fluid, box=Box((-0.1, -0.1), (0.3, 0.3)), l0=l0,
+        physics=FlowPhysics(gravity=(0.0, 0.0)), models=Models(),
+        outflows=(Region((0.105, -1.0), (1.0, 1.0)),),  # the last two columns
+    )
+    s = make_solver("reference")
+    s.setup(problem)
+    s.step(s.stable_dt())
+    assert s.state().n == 10 * 12
+    n = s.diagnostics()["number_density"]
+    assert len(n) == s.state().n
+    n0 = s.diagnostics()["n0"]
+    x = s.state().pos[:, 0]
+    inner = (x > 0.03) & (x < 0.07) & (np.abs(s.state().pos[:, 1] - 0.06) < 0.02)
+    np.testing.assert_allclose(n[inner], n0, rtol=1e-3)
+    assert s.diagnostics()["free_surface"][np.argmin(x)]  # the left edge is still flagged

@@ -76,14 +76,18 @@ def _align_fields(new: Particles, old: Particles) -> Particles:
     return new
 
 
-def remove_outflow(p: Particles, regions: tuple[Region, ...]) -> tuple[Particles, int]:
-    """Drop fluid particles inside any outflow region; returns the new set and the count removed."""
-    if not regions:
-        return p, 0
+def outflow_mask(p: Particles, regions: tuple[Region, ...]) -> NDArray[np.bool_]:
+    """Mask of the fluid particles inside any outflow region."""
     gone = np.zeros(p.n, dtype=bool)
     for reg in regions:
         inside = np.all((p.pos >= reg.lo) & (p.pos <= reg.hi), axis=1)
         gone |= inside & (p.kind == Kind.FLUID)
+    return gone
+
+
+def remove_outflow(p: Particles, regions: tuple[Region, ...]) -> tuple[Particles, int]:
+    """Drop fluid particles inside any outflow region; returns the new set and the count removed."""
+    gone = outflow_mask(p, regions)
     if not gone.any():
         return p, 0
     return p.subset(~gone), int(gone.sum())
