@@ -164,7 +164,8 @@ def test_diffusion_decay_rate_matches_lattice_eigenvalue(laplacian: str, wf: str
     value, 2 pi / 0.2 = 31.4 is not an integer).  We take n_side = 32 (k l0 = 0.196, closest),
     compute the model's exact discrete eigenvalue lambda for that mode from the lattice sum
     (independent code above; checked against the table at k l0 = 0.2 by the test above), and
-    require the measured decay rate kappa |lambda| to 1e-3 relative; the decay-rate ratio
+    require the measured decay rate kappa |lambda| to 1e-3 relative (it holds to 1e-4, and to
+    1e-7 after Richardson extrapolation in dt); the decay-rate ratio
     rate / (8 pi^2 kappa) then is the table's "mode" ratio at k l0 = 0.196.
 
     Time stepping: forward Euler decays the mode as (1 + dt lambda)^n, a relative rate error of
@@ -181,7 +182,9 @@ def test_diffusion_decay_rate_matches_lattice_eigenvalue(laplacian: str, wf: str
         rate_half = _decay_rate(laplacian, wf, re_ratio, n_side, dt / 2, 400)
         time_error = 2.0 * abs(rate - rate_half) / rate_half  # Richardson, first order
         assert time_error < 1e-4, (re_ratio, time_error)
-        assert rate_half == pytest.approx(-lam, rel=1e-3), re_ratio
+        assert rate_half == pytest.approx(-lam, rel=1e-4), re_ratio  # asked: 1e-3
+        # Richardson-extrapolated, the solver's operator and the oracle agree far closer
+        assert 2 * rate_half - rate == pytest.approx(-lam, rel=1e-7), re_ratio
         ratio = rate_half / (8 * math.pi**2)
         assert ratio == pytest.approx(lam / (-2 * (2 * math.pi) ** 2), rel=1e-3)
         # and the table itself (k l0 = 0.2 there, 0.196 here: within a few 1e-3)
