@@ -344,7 +344,9 @@ class _Validator:
                     out = param.check(value)
             except ConfigError:
                 unit = f" ({param.unit})" if param.unit else ""
-                self.fail(key, f"{_fmt(value)} is not allowed: {param.allowed()}{unit}")
+                hint = (_suggest(value, [str(c) for c in param.choices])
+                        if isinstance(value, str) and param.choices else "")
+                self.fail(key, f"{_fmt(value)} is not allowed{hint}: {param.allowed()}{unit}")
                 return None
         registry = _model_registry(params[0].name) if params else None
         if registry is not None and isinstance(out, str):

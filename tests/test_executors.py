@@ -280,3 +280,26 @@ def test_interrupt_then_resume(
     )
     st = json.loads(status.stdout)
     assert (st["planned"], st["done"], st["pending"], st["failed"]) == (n_grid, n_grid, 0, 0)
+
+
+# --------------------------------------------------------------------------- the example study
+
+
+@pytest.mark.slow
+def test_example_study_local_and_dask_records_match(tmp_path: Path) -> None:
+    """examples/studies/couette_laplacians.toml with both executors: the same 24 records."""
+    pytest.importorskip("distributed")
+    pytest.importorskip("mpsbench.validations.couette")
+    from mpsbench import cli
+
+    study = str(ROOT / "examples" / "studies" / "couette_laplacians.toml")
+    for executor in ("local", "dask"):
+        args = ["study", "run", study, "--jobs", "2", "--executor", executor,
+                "--out", str(tmp_path / executor), "--no-report"]
+        assert cli.main(args) == 0
+    local = {r["run_id"]: r for r in load_records(tmp_path / "local" / "couette")}
+    remote = {r["run_id"]: r for r in load_records(tmp_path / "dask" / "couette")}
+    assert len(local) == 24 and set(local) == set(remote)
+    for rid, rec in local.items():
+        assert rec["status"] == "completed", rec["reason"]
+        assert stable(rec) == stable(remote[rid]), rid

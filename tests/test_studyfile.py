@@ -187,7 +187,7 @@ def test_plugin_model_name_is_accepted(tmp_path: Path) -> None:
           "known: ", "koshizuka-oka"]),
         # a model name outside the parameter's choices
         ('case = "study-toy"\n[[runs]]\nweight = "wf3"\n',
-         ["runs[0].weight: \"wf3\" is not allowed: one of wf1, wf2"]),
+         ["runs[0].weight: \"wf3\" is not allowed (did you mean 'wf2'?): one of wf1, wf2"]),
         ('case = "couettte"\n', ["case: unknown case 'couettte'"]),
         ('case = "study-toy"\nsolvers = ["refrence"]\n',
          ["solvers[0]: unknown solver 'refrence' (did you mean 'reference'?)"]),
@@ -354,3 +354,20 @@ def test_cli_lock_refuses_a_second_run(
         holder.kill()
         holder.wait()
     assert fcntl is not None
+
+
+# --------------------------------------------------------------------------- the example study
+
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "studies" / "couette_laplacians.toml"
+
+
+def test_example_study_is_the_24_run_grid() -> None:
+    pytest.importorskip("mpsbench.validations.couette")
+    spec = load_study(EXAMPLE)
+    tasks = spec.tasks()
+    assert len(tasks) == 4 * 2 * 3
+    combos = {(t.params["laplacian"], t.params["weight"], t.params["re_ratio"]) for t in tasks}
+    assert len(combos) == 24
+    assert {t.params["l0"] for t in tasks} == {5e-5}
+    assert spec.default_out() == Path("reports/studies/couette-laplacians")
