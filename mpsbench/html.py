@@ -133,6 +133,15 @@ def image_html(path: Path) -> str:
             f"<figcaption>{esc(path.stem)}</figcaption></figure>")
 
 
+def _relpath(folder: Path, out: Path) -> str:
+    """``folder`` relative to the page's folder, with a trailing slash ('' for the same)."""
+    try:
+        rel = folder.resolve().relative_to(out.resolve()).as_posix()
+    except ValueError:
+        return folder.resolve().as_uri() + "/"
+    return "" if rel == "." else rel + "/"
+
+
 def anchor(*parts: str) -> str:
     return re.sub(r"[^A-Za-z0-9_-]+", "-", "--".join(parts))
 
@@ -201,6 +210,12 @@ def render_index(sections: list[CaseSection], manifest: dict[str, Any], out: Pat
                     f"{badge(sec.passed)}</h2>")
         if sec.description:
             body.append(markdown_html(sec.description))
+        if sec.folder is not None and (sec.folder / "report.md").exists():
+            rel = _relpath(sec.folder, out)
+            links = ", ".join(f'<a href="{esc(rel + name)}">{esc(name)}</a>'
+                              for name in ("report.md", "results.csv", "tables/")
+                              if (sec.folder / name).exists())
+            body.append(f'<p class="meta">Case folder <code>{esc(rel or "./")}</code>: {links}</p>')
         if sec.error:
             body.append(f'<p class="error">{esc(sec.error)}</p>')
         for s in sec.solvers:
