@@ -303,3 +303,20 @@ def test_example_study_local_and_dask_records_match(tmp_path: Path) -> None:
     for rid, rec in local.items():
         assert rec["status"] == "completed", rec["reason"]
         assert stable(rec) == stable(remote[rid]), rid
+
+
+def test_cli_study_on_a_scheduler_address(
+    tmp_path: Path, dask_client: Any, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--scheduler ADDRESS: the CLI connects to a running cluster (and leaves it running)."""
+    from mpsbench import cli
+
+    address = dask_client.scheduler.address
+    study = tmp_path / "s.toml"
+    study.write_text(f'case = "{TOY}"\ntier = "quick"\n')
+    out = tmp_path / "out"
+    assert cli.main(["study", "run", str(study), "--scheduler", address, "--out", str(out),
+                     "--no-report"]) == 0
+    assert f"executor: dask (scheduler {address})" in capsys.readouterr().err
+    assert len(load_records(out / TOY)) == 4
+    assert len(dask_client.scheduler_info()["workers"]) == 2  # still up
