@@ -177,7 +177,7 @@ def _noise_bars(prs: list, outdir: Path) -> Path | None:
                 ("density_drift_mean", "mean |n/n0 - 1|")]
     fig, axes = plt.subplots(1, 3, figsize=(13, 0.9 + 0.35 * len(prs)), constrained_layout=True)
     y = np.arange(len(prs))
-    names = [label(off) for off, _ in prs]
+    names = [label(on) for _, on in prs]
     for ax, (m, title) in zip(axes, measures, strict=True):
         off = [p[0].get(m) or 0.0 for p in prs]
         on = [p[1].get(m) or 0.0 for p in prs]
@@ -188,7 +188,7 @@ def _noise_bars(prs: list, outdir: Path) -> Path | None:
         ax.set_title(title)
         ax.grid(axis="x", alpha=0.3)
         ax.ticklabel_format(axis="x", style="sci", scilimits=(-2, 3))
-    axes[0].legend(fontsize=7)
+    axes[0].legend(fontsize=7, loc="lower right")
     path = outdir / "noise.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.spatial import cKDTree
 
 from mpsbench.kernels import get_weight
 from mpsbench.neighbours import build_pairs
@@ -128,6 +129,9 @@ class FrameMeasures:
     drift_sum: float  # sum over interior particles of |n_i/n0 - 1|
     drift_max: float
     drift_count: int
+    nn_sum: float = 0.0  # sum over fluid particles of the nearest-neighbour distance / l0
+    nn_close: int = 0  # how many of them have a neighbour closer than the collision distance
+    nn_count: int = 0
 
 
 def frame_measures(
@@ -142,13 +146,16 @@ def frame_measures(
     q: float,
     beta: float,
     region: tuple[float, float] | None = None,
+    close_distance: float = 0.0,
 ) -> FrameMeasures:
     """Spatial pressure noise and number-density drift of one state.
 
     Noise: (p_i - kernel mean of neighbours' p) / q over fluid particles that are not free
     surface (n_i >= beta n0, the solvers' rule, so their pressure is not zeroed by
     construction) and lie inside ``region`` = (|x| max, y max) if given.  Drift: |n_i/n0 - 1|
-    over interior fluid particles (:func:`interior_fluid`) inside ``region``.
+    over interior fluid particles (:func:`interior_fluid`) inside ``region``.  Spacing: the
+    nearest-neighbour distance (any kind) of every fluid particle inside ``region``, in l0, and
+    how many are closer than ``close_distance`` l0 (where a collision model can act).
     """
     fluid = kind == Kind.FLUID
     carries = fluid | (kind == Kind.WALL) | (kind == Kind.INFLOW)
@@ -161,12 +168,19 @@ def frame_measures(
     noise = dev[sel] / q
     interior = interior_fluid(pos, kind, re, l0) & inside
     drift = np.abs(n[interior] / n0 - 1.0)
+    probe = fluid & inside
+    nn = np.zeros(0)
+    if probe.any() and len(pos) > 1:
+        nn = cKDTree(pos).query(pos[probe], k=2)[0][:, 1] / l0
     return FrameMeasures(
         noise_sq_sum=float(np.sum(noise**2)),
         noise_count=int(sel.sum()),
         drift_sum=float(drift.sum()),
         drift_max=float(drift.max()) if drift.size else 0.0,
         drift_count=int(drift.size),
+        nn_sum=float(nn.sum()),
+        nn_close=int(np.sum(nn < close_distance)),
+        nn_count=int(nn.size),
     )
 
 
@@ -174,10 +188,13 @@ def pooled(frames: list[FrameMeasures]) -> dict[str, float]:
     """Pool frames: RMS noise over all measured particle-frames; mean and max drift."""
     nc = sum(f.noise_count for f in frames)
     dc = sum(f.drift_count for f in frames)
+    kc = sum(f.nn_count for f in frames)
     return {
         "noise_spatial": float(np.sqrt(sum(f.noise_sq_sum for f in frames) / nc)) if nc else np.nan,
         "density_drift_mean": sum(f.drift_sum for f in frames) / dc if dc else np.nan,
         "density_drift_max": max((f.drift_max for f in frames), default=np.nan),
+        "nn_distance_mean": sum(f.nn_sum for f in frames) / kc if kc else np.nan,
+        "close_fraction": sum(f.nn_close for f in frames) / kc if kc else np.nan,
     }
 
 
