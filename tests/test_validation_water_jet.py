@@ -18,6 +18,7 @@ from mpsbench.validations._jet_metrics import (
     interior_fluid,
     penetrations,
     pressure_deviation,
+    stabilization_viscosity,
     surface_centroid,
     temporal_noise,
 )
@@ -170,6 +171,26 @@ def test_penetration_count_and_temporal_noise() -> None:
     assert penetrations(pos, kind, half_plate=1.0) == 2  # beyond the plate / walls: ignored
     assert temporal_noise(np.full(10, 3.0)) == 0.0
     assert temporal_noise(np.array([1.0, 3.0])) == pytest.approx(0.5)
+
+
+def test_stabilization_viscosity_matches_one_stabilization_step() -> None:
+    """One step of u += (alpha_s l0/n0) sum |W'| (u_j - u_i) on sin(kx) = dt nu_s lap(u)."""
+    from mpsbench.kernels import get_weight
+    from mpsbench.neighbours import build_pairs
+    from mpsbench.operators import lattice_pairs
+
+    n_side, l0, alpha_s, dt = 32, 0.01, 0.01, 1e-4
+    pos, box = lattice_pairs(n_side, l0)
+    k = 2.0 * math.pi / (n_side * l0)
+    u = np.sin(k * pos[:, 0])
+    re = RE * l0
+    pairs = build_pairs(pos, re, box)
+    wf = get_weight("wf2")
+    n0 = lattice_constants("wf2", RE, l0)[0]
+    du = (alpha_s * l0 / n0) * pairs.sum_antisym(np.abs(wf.dw(pairs.r, re)) * pairs.diff(u))
+    nu_s = stabilization_viscosity("wf2", RE, l0, alpha_s, dt)
+    expected = -dt * nu_s * k**2 * u
+    assert np.max(np.abs(du - expected)) < 0.01 * np.max(np.abs(expected))  # k l0 = 0.2
 
 
 # --------------------------------------------------------------------------- geometry

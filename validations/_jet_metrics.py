@@ -204,6 +204,25 @@ def penetrations(pos: FloatArray, kind: NDArray[np.int8], half_plate: float) -> 
     return int(np.sum(fluid & (pos[:, 1] < 0.0) & (np.abs(pos[:, 0]) <= half_plate)))
 
 
+def stabilization_viscosity(weight: str, re_ratio: float, l0: float, alpha_s: float,
+                            dt: float) -> float:
+    """Viscosity [m^2/s] the stabilization (method.md 5) adds to a smooth velocity field.
+
+    u_i <- u_i + (alpha_s l0 / n0) sum_j |W'_ij| (u_j - u_i) once per step; for a smooth field
+    the sum is (1/4) sum_j |W'_ij| r_ij^2 lap(u) on an isotropic lattice, so per unit time it is
+    a diffusion with nu_s = alpha_s l0 sum_j |W'_ij| r_ij^2 / (4 n0 dt): it grows as dt shrinks.
+    """
+    wf = get_weight(weight)
+    re = re_ratio * l0
+    m = int(np.ceil(re_ratio)) + 1
+    ix, iy = np.meshgrid(np.arange(-m, m + 1), np.arange(-m, m + 1), indexing="ij")
+    r = l0 * np.hypot(ix.ravel(), iy.ravel())
+    r = r[r > 0]
+    n0 = float(wf.w(r, re).sum())
+    moment = float(np.sum(np.abs(wf.dw(r, re)) * r**2))
+    return alpha_s * l0 * moment / (4.0 * n0 * dt)
+
+
 def temporal_noise(series: FloatArray) -> float:
     """Standard deviation of a time series relative to its mean (NaN if the mean is 0)."""
     series = np.asarray(series, float)

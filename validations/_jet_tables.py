@@ -118,7 +118,8 @@ def noise_table(records: list[dict[str, Any]]) -> pd.DataFrame:
     return pd.DataFrame(rows).set_index("model") if rows else pd.DataFrame()
 
 
-PLATE_COLUMNS = ("cp_rms_error", "cp_max_error", "cp_stagnation", "sheet_speed", "penetrations",
+PLATE_COLUMNS = ("cp_rms_error", "cp_max_error", "cp_stagnation", "sheet_speed",
+                 "stabilization_re", "penetrations",
                  "noise_spatial", "noise_temporal", "density_drift_mean", "density_drift_max",
                  "cp_stagnation_drift", "wall_time_s")
 
@@ -199,13 +200,16 @@ def findings(records: list[dict[str, Any]]) -> str:
             lines.append(f"- {label(on)}: " + "; ".join(parts) + f"; {pen}.")
         lines.append("")
         lines += ["**What it does to the plate pressure** (Cp RMS error over 0 <= x/b <= 2, "
-                  "stagnation Cp, sheet speed / U at 1.5-2.5 b; exact: 0, 1, 1):", ""]
+                  "stagnation Cp, sheet speed / U at 1.5-2.5 b; exact: 0, 1, 1). The "
+                  "stabilization is applied once per step, so it adds a viscosity "
+                  "nu_s = alpha_s l0 sum|W'| r^2 / (4 n0 dt) that grows as dt shrinks; "
+                  "Re_s = U b / nu_s below (water: 1e5):", ""]
         for off, on in prs:
             lines.append(
                 f"- {label(on)}: off {fmt(off.get('cp_rms_error'))}, "
                 f"{fmt(off.get('cp_stagnation'))}, {fmt(off.get('sheet_speed'))}; "
                 f"on {fmt(on.get('cp_rms_error'))}, {fmt(on.get('cp_stagnation'))}, "
-                f"{fmt(on.get('sheet_speed'))}."
+                f"{fmt(on.get('sheet_speed'))} (Re_s {fmt(on.get('stabilization_re'))})."
             )
         lines.append("")
     groups = collision_groups(records)

@@ -46,6 +46,7 @@ from ._jet_metrics import (
     free_streamline_cp,
     penetrations,
     pooled,
+    stabilization_viscosity,
     temporal_noise,
 )
 
@@ -110,6 +111,8 @@ class WaterJetCase(Case):
         "close_fraction": "fraction of those particles with a neighbour closer than alpha_c l0, "
         "where the collision model can act (0 without it) (-)",
         "b_over_l0": "resolution b / l0 (-)",
+        "stabilization_re": "U b / nu_s, nu_s = alpha_s l0 sum|W'| r^2 / (4 n0 dt) the viscosity "
+        "the stabilization adds at the run's mean dt (water: U b / nu = 1e5) (-)",
     }
     tiers = {
         # CI: the acceptance model at b/10, stabilization off and on, a short run
@@ -178,7 +181,11 @@ class WaterJetCase(Case):
                        every=SAMPLE * scale)
         result = run(solver, problem, end_time=t_end, probes=[plate, frames, pen])
 
-        metrics: dict[str, Any] = {"b_over_l0": round(b / l0, 6)}
+        metrics: dict[str, Any] = {"b_over_l0": round(b / l0, 6), "stabilization_re": np.nan}
+        if params["stabilization"] and params["alpha_s"] > 0 and result.n_steps > 0:
+            nu_s = stabilization_viscosity(params["weight"], params["re_ratio"], l0,
+                                           params["alpha_s"], result.time / result.n_steps)
+            metrics["stabilization_re"] = speed * b / nu_s
         arrays: dict[str, np.ndarray] = {}
         t = np.asarray(plate.t)
         cp = plate.array() / q if plate.values else np.zeros((0, len(sensors)))
