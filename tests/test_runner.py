@@ -160,7 +160,7 @@ def test_unsupported_problem_is_a_failed_run() -> None:
 
     result = run(DiffusionOnly(), toy_problem(), end_time=1.0)
     assert result.status == Status.FAILED
-    assert "physic 'flow' not supported" in result.reason or "flow" in result.reason
+    assert "cannot run this problem" in result.reason and "'flow'" in result.reason
 
 
 def test_missing_diffusion_field_is_a_failed_setup_of_the_reference() -> None:
