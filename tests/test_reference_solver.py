@@ -330,7 +330,7 @@ def test_moving_wall_develops_a_linear_couette_profile(wall_velocity: str) -> No
     near the first wall rows (y = -l0/2 and H + l0/2); with ``mirror`` they sit on the wall lines
     y = 0 and y = H.  nu = 0.01 m^2/s over H = 0.1 m: diffusion time H^2/nu = 1 s, so after 1 s
     the slowest transient mode is down to about exp(-pi^2) ~ 1e-4 U.  Measured: both within
-    0.03 % of U of their exact profiles (a Shepard average at the mirror points, first order near
+    0.1 % of U of their exact profiles (a Shepard average at the mirror points, first order near
     the wall, was 0.7 % of U off).
     """
     l0, ny, u_lid = 0.01, 10, 0.01
