@@ -106,6 +106,16 @@ class Problem:
         }
 
 
+_SINGULAR = {
+    "physics": "physics",
+    "boundaries": "boundary",
+    "features": "feature",
+    "laplacians": "Laplacian",
+    "weights": "weighting function",
+    "gradients": "pressure gradient",
+}
+
+
 @dataclass(frozen=True)
 class Capabilities:
     """What a backend supports.  ``None`` for a model category means "any registered model"."""
@@ -129,8 +139,7 @@ class Capabilities:
             if have is None:
                 continue
             for item in sorted(needed - set(have)):
-                what = category[:-1] if category.endswith("s") else category
-                out.append(f"{what} {item!r} not supported")
+                out.append(f"{_SINGULAR.get(category, category)} {item!r} not supported")
         return out
 
     def as_dict(self) -> dict[str, Any]:
