@@ -61,19 +61,24 @@ def box_lo(box: Box | None) -> FloatArray:
 
 
 @njit(cache=True, inline="always")
-def min_image(d: float, period: float) -> float:
-    """One component of a separation under the minimum-image convention (period 0: free)."""
-    if period > 0.0:
-        # Same bits as d - L * rint(d / L) (Box.minimum_image) for |d| < 1.5 L, without the
-        # division; the general form handles positions that are not wrapped into the box.
-        if d > 0.5 * period:
-            if d < 1.5 * period:
-                return d - period
-            return d - period * np.rint(d / period)
-        if d < -0.5 * period:
-            if d > -1.5 * period:
-                return d + period
-            return d - period * np.rint(d / period)
+def half_width(period):
+    """Half the period of an axis, +inf on a free axis (period 0): the argument of min_image."""
+    return 0.5 * period if period > 0.0 else np.inf
+
+
+@njit(cache=True, inline="always")
+def min_image(d, period, half):
+    """One component of a separation under the minimum-image convention.
+
+    ``half`` = :func:`half_width` (``period``).  Same bits as ``d - L * rint(d / L)``
+    (Box.minimum_image): inside half a period nothing changes, up to 1.4 periods the image is
+    d -+ L (exactly what rint gives there), beyond that the general form is used (positions
+    that are not wrapped into the box).  One well-predicted compare in the common case.
+    """
+    if abs(d) > half:
+        if abs(d) < 1.4 * period:
+            return d - period if d > 0.0 else d + period
+        return d - period * np.rint(d / period)
     return d
 
 
@@ -137,13 +142,13 @@ def _coord(x, origin, size, m, periodic):
     return int(f)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _bin(pos, origin, size, ncell, period, cell):
     """Cell id of every particle; ids run along x fastest (``cy * nx + cx``)."""
     n = pos.shape[0]
     px = period[0] > 0.0
     py = period[1] > 0.0
-    for i in prange(n):
+    for i in range(n):
         cx = _coord(pos[i, 0], origin[0], size[0], ncell[0], px)
         cy = _coord(pos[i, 1], origin[1], size[1], ncell[1], py)
         cell[i] = cy * ncell[0] + cx
@@ -185,14 +190,44 @@ def _spans(c, m, periodic):
     return a, b, 1, 0
 
 
-@njit(cache=True, parallel=True)
-def _scan(spos, order, start, cell, ncell, period, cut2, static, offsets, nbr, counts, fill):
-    """Count (``fill`` false) or write (``fill`` true) the neighbours of every particle.
+@njit(cache=True)
+def _bounds(start, cell, ncell, period, order, bound):
+    """bound[k]: particles in the stencil cells of particle ``order[k]`` (a row-length bound)."""
+    n = order.shape[0]
+    nx = ncell[0]
+    ny = ncell[1]
+    px = period[0] > 0.0
+    py = period[1] > 0.0
+    for k in range(n):
+        c = cell[order[k]]
+        cy = c // nx
+        cx = c - cy * nx
+        xa0, xb0, xa1, xb1 = _spans(cx, nx, px)
+        ya0, yb0, ya1, yb1 = _spans(cy, ny, py)
+        m = 0
+        for ys in range(2):
+            ylo = ya0 if ys == 0 else ya1
+            yhi = yb0 if ys == 0 else yb1
+            for ay in range(ylo, yhi + 1):
+                row = ay * nx
+                m += start[row + xb0 + 1] - start[row + xa0]
+                if xa1 <= xb1:
+                    m += start[row + xb1 + 1] - start[row + xa1]
+        bound[k] = m
 
-    Loops run in cell order (particles ``order[k]``), so neighbouring cells are hot in cache;
-    the cells of one stencil row are contiguous in that order and are scanned as one span.
-    Pairs whose both ends are ``static`` are skipped.
+
+@njit(cache=True, parallel=True)
+def _scan(spos, order, start, cell, ncell, period, cut2, static, bstart, buf, counts):
+    """Write the neighbours of every particle into its slice of ``buf`` (one distance pass).
+
+    Particle ``order[k]`` owns ``buf[bstart[k]:bstart[k + 1]]``, long enough for every
+    candidate in its stencil, so the write is branch-free (always store, advance when inside).
+    Loops run in cell order, so neighbouring cells are hot in cache; the cells of one stencil
+    row are contiguous in that order and are scanned as one span.  Pairs whose both ends are
+    ``static`` are skipped.
     """
+    hx = half_width(period[0])
+    hy = half_width(period[1])
     n = spos.shape[0]
     nx = ncell[0]
     ny = ncell[1]
@@ -208,7 +243,8 @@ def _scan(spos, order, start, cell, ncell, period, cut2, static, offsets, nbr, c
         cx = c - cy * nx
         xa0, xb0, xa1, xb1 = _spans(cx, nx, px)
         ya0, yb0, ya1, yb1 = _spans(cy, ny, py)
-        t = offsets[i] if fill else 0
+        t0 = bstart[k]
+        t = t0
         for ys in range(2):
             ylo = ya0 if ys == 0 else ya1
             yhi = yb0 if ys == 0 else yb1
@@ -220,79 +256,89 @@ def _scan(spos, order, start, cell, ncell, period, cut2, static, offsets, nbr, c
                     if xlo > xhi:
                         continue
                     for q in range(start[row + xlo], start[row + xhi + 1]):
-                        if q == k:
-                            continue
-                        dx = min_image(spos[q, 0] - xi, period[0])
-                        dy = min_image(spos[q, 1] - yi, period[1])
-                        inside = dx * dx + dy * dy <= cut2
+                        dx = min_image(spos[q, 0] - xi, period[0], hx)
+                        dy = min_image(spos[q, 1] - yi, period[1], hy)
+                        j = order[q]
+                        inside = (dx * dx + dy * dy <= cut2) and q != k
                         if si:
-                            inside = inside and not static[order[q]]
-                        if fill:
-                            if inside:
-                                nbr[t] = order[q]
-                                t += 1
-                        else:
-                            t += inside
-        if not fill:
-            counts[i] = t
+                            inside = inside and not static[j]
+                        buf[t] = j
+                        t += inside
+        counts[i] = t - t0
 
 
 @njit(cache=True, parallel=True)
+def _compact(order, bstart, buf, offsets, nbr):
+    for k in prange(order.shape[0]):
+        i = order[k]
+        a = offsets[i]
+        b0 = bstart[k]
+        for t in range(offsets[i + 1] - a):
+            nbr[a + t] = buf[b0 + t]
+
+
+@njit(cache=True)
 def _sort_rows(offsets, nbr):
-    for i in prange(offsets.shape[0] - 1):
+    for i in range(offsets.shape[0] - 1):
         a = offsets[i]
         b = offsets[i + 1]
         if b - a > 1:
             nbr[a:b] = np.sort(nbr[a:b])
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def csr_geometry(pos, offsets, nbr, period, dx, r):
     """Fill ``dx[k] = r_j - r_i`` (minimum image) and ``r[k] = |dx[k]|`` for every CSR entry."""
+    hx = half_width(period[0])
+    hy = half_width(period[1])
     n = offsets.shape[0] - 1
-    for i in prange(n):
+    for i in range(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
         for k in range(offsets[i], offsets[i + 1]):
             j = nbr[k]
-            d0 = min_image(pos[j, 0] - xi, period[0])
-            d1 = min_image(pos[j, 1] - yi, period[1])
+            d0 = min_image(pos[j, 0] - xi, period[0], hx)
+            d1 = min_image(pos[j, 1] - yi, period[1], hy)
             dx[k, 0] = d0
             dx[k, 1] = d1
             r[k] = np.sqrt(d0 * d0 + d1 * d1)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def pair_geometry(pos, i, j, period, dx, r):
     """Fill ``dx`` and ``r`` for a pair list (i, j), same formula as ``PairList.refresh``."""
-    for k in prange(i.shape[0]):
-        d0 = min_image(pos[j[k], 0] - pos[i[k], 0], period[0])
-        d1 = min_image(pos[j[k], 1] - pos[i[k], 1], period[1])
+    hx = half_width(period[0])
+    hy = half_width(period[1])
+    for k in range(i.shape[0]):
+        d0 = min_image(pos[j[k], 0] - pos[i[k], 0], period[0], hx)
+        d1 = min_image(pos[j[k], 1] - pos[i[k], 1], period[1], hy)
         dx[k, 0] = d0
         dx[k, 1] = d1
         r[k] = np.sqrt(d0 * d0 + d1 * d1)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def max_displacement(pos, ref, period):
     """max_i |pos_i - ref_i| under the minimum image (wrapping a particle is not a move).
 
     NaN positions give NaN, which fails every ``<=`` test and so forces a rebuild.
     """
+    hx = half_width(period[0])
+    hy = half_width(period[1])
     n = pos.shape[0]
     d2 = np.empty(n)
-    for i in prange(n):
-        d0 = min_image(pos[i, 0] - ref[i, 0], period[0])
-        d1 = min_image(pos[i, 1] - ref[i, 1], period[1])
+    for i in range(n):
+        d0 = min_image(pos[i, 0] - ref[i, 0], period[0], hx)
+        d1 = min_image(pos[i, 1] - ref[i, 1], period[1], hy)
         d2[i] = d0 * d0 + d1 * d1
     if n == 0:
         return 0.0
     return np.sqrt(np.max(d2))
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def _gather_rows(pos, order, out):
-    for k in prange(order.shape[0]):
+    for k in range(order.shape[0]):
         out[k, 0] = pos[order[k], 0]
         out[k, 1] = pos[order[k], 1]
 
@@ -382,14 +428,16 @@ def build_csr(
     _counting_sort(cell, ncells, start, order)
     spos = np.empty((n, 2))
     _gather_rows(pos, order, spos)
+    bstart = np.zeros(n + 1, np.int64)
+    _bounds(start, cell, ncell, period, order, bstart[1:])
+    np.cumsum(bstart[1:], out=bstart[1:])
+    buf = np.empty(int(bstart[-1]), np.int32)
     counts = np.empty(n, np.int64)
+    _scan(spos, order, start, cell, ncell, period, float(cutoff) ** 2, st, bstart, buf, counts)
     offsets = np.zeros(n + 1, np.int64)
-    dummy = np.empty(0, np.int32)
-    cut2 = float(cutoff) ** 2
-    _scan(spos, order, start, cell, ncell, period, cut2, st, offsets, dummy, counts, False)
     np.cumsum(counts, out=offsets[1:])
     nbr = np.empty(int(offsets[-1]), np.int32)
-    _scan(spos, order, start, cell, ncell, period, cut2, st, offsets, nbr, counts, True)
+    _compact(order, bstart, buf, offsets, nbr)
     if sort_rows:
         _sort_rows(offsets, nbr)
     out = CSRNeighbours(offsets, nbr, n, float(cutoff), period, order)
@@ -484,6 +532,7 @@ __all__ = [
     "csr_geometry",
     "csr_to_pairs",
     "max_displacement",
+    "half_width",
     "min_image",
     "pair_geometry",
 ]
