@@ -93,7 +93,8 @@ class ReferenceSolver(SolverBase):
     def _setup_diffusion(self, physics: DiffusionPhysics) -> None:
         if physics.field_name not in self.p.fields:
             raise ValueError(
-                f"diffusion needs the scalar field {physics.field_name!r} in Problem.particles.fields"
+                f"diffusion needs the scalar field {physics.field_name!r} "
+                "in Problem.particles.fields"
             )
         pairs = build_pairs(self.p.pos, self.re_lap, self.box)
         self.counters["neighbour_builds"] += 1
