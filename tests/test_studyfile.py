@@ -371,3 +371,29 @@ def test_example_study_is_the_24_run_grid() -> None:
     assert len(combos) == 24
     assert {t.params["l0"] for t in tasks} == {5e-5}
     assert spec.default_out() == Path("reports/studies/couette-laplacians")
+
+
+class OtherToy(StudyToy):
+    name = "study-toy-2"
+
+
+def test_two_cases_share_the_grid_and_keep_their_folders(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    CASES.register(OtherToy.name, OtherToy(), origin="user", replace=True)
+    try:
+        path = write(tmp_path, f'cases = ["{TOY}", "{OtherToy.name}"]\ntier = "smoke"\n'
+                     '[grid]\nre_ratio = [2.0, 3.0]\n')
+        spec = load_study(path)
+        assert [t.case for t in spec.tasks()].count(OtherToy.name) == 4
+        out = tmp_path / "out"
+        assert cli.main(["study", "run", str(path), "--out", str(out), "--jobs", "2"]) == 0
+        for name in (TOY, OtherToy.name):
+            assert len(load_records(out / name)) == 4
+            assert (out / name / "results.csv").is_file()
+        # a bad entry of the list is named by its index
+        bad = write(tmp_path, f'cases = ["{TOY}", "reference-missing"]\n', "bad.toml")
+        with pytest.raises(StudyFileError, match=r"cases\[1\]: unknown case 'reference-missing'"):
+            load_study(bad)
+    finally:
+        CASES.unregister(OtherToy.name)
