@@ -69,10 +69,11 @@ def args(csr, pos, box):
 
 @pytest.mark.parametrize("name", list(BOXES))
 @pytest.mark.parametrize("cutoff", [0.21, 0.31, 0.43, 0.7])
-def test_pair_list_equals_build_pairs(name, cutoff):
+@pytest.mark.parametrize("reach", [1, 2, 3])
+def test_pair_list_equals_build_pairs(name, cutoff, reach):
     pos, box, _ = cloud(BOXES[name], seed=3)
     ref = build_pairs(pos, cutoff, box)
-    got = cells.build_pairs_cells(pos, cutoff, box)
+    got = cells.csr_to_pairs(cells.build_csr(pos, cutoff, box, reach=reach), pos)
     assert len(got) == len(ref) > 0
     for attr in ("i", "j", "dx", "r"):
         np.testing.assert_array_equal(getattr(got, attr), getattr(ref, attr), err_msg=attr)

@@ -13,7 +13,8 @@ stay correct, only slower, if one particle flies far away).  Particles are binne
 counting sort.
 
 The CSR list holds both directions of every pair: row ``i`` is
-``nbr[offsets[i]:offsets[i + 1]]`` (int32), so per-particle loops run in parallel without write
+``nbr[offsets[i]:offsets[i + 1]]`` (uint32: unsigned indices spare numba's negative-index
+wraparound test on every gather), so per-particle loops run in parallel without write
 conflicts.  It stores no geometry by default: the compute kernels recompute ``dx`` and ``r`` from
 the positions on the fly, which reads 4 bytes per entry instead of 28 and lets one list built at
 ``r_max + skin`` serve many steps (:class:`CellNeighbourList`).  :func:`csr_geometry` fills
@@ -83,14 +84,14 @@ def min_image(d, period, half):
 
 
 @njit(cache=True)
-def _grid(pos, cutoff, period, lo, max_cells):
-    """Cell grid: origin (2,), cell size (2,), cells per axis (2,)."""
+def _grid(pos, cutoff, period, lo, max_cells, reach):
+    """Cell grid: origin (2,), cell size (2,), cells per axis (2,); cells >= cutoff / reach."""
     n = pos.shape[0]
     origin = np.empty(2)
     size = np.empty(2)
     ncell = np.empty(2, np.int64)
     extent = np.zeros(2)
-    width = cutoff * _SAFETY
+    width = cutoff / reach * _SAFETY
     for ax in range(2):
         if period[ax] > 0.0:
             m = int(period[ax] / width)
@@ -171,27 +172,27 @@ def _counting_sort(cell, ncells, start, order):
 
 
 @njit(cache=True, inline="always")
-def _spans(c, m, periodic):
-    """Cell coordinates c-1..c+1 along one axis as up to two contiguous spans [a0, b0], [a1, b1].
+def _spans(c, m, periodic, reach):
+    """Cells c-reach..c+reach along one axis as up to two contiguous spans [a0, b0], [a1, b1].
 
-    Each cell appears once (a periodic axis with fewer than 4 cells takes the whole axis).
-    An empty second span has a1 > b1.
+    Each cell appears once (a periodic axis with at most 2 reach + 1 cells takes the whole
+    axis; a stencil that wraps is split in two).  An empty second span has a1 > b1.
     """
+    lo = c - reach
+    hi = c + reach
     if periodic:
-        if m <= 3:
+        if m <= 2 * reach + 1:
             return 0, m - 1, 1, 0
-        if c == 0:
-            return 0, 1, m - 1, m - 1
-        if c == m - 1:
-            return m - 2, m - 1, 0, 0
-        return c - 1, c + 1, 1, 0
-    a = c - 1 if c > 0 else 0
-    b = c + 1 if c < m - 1 else m - 1
-    return a, b, 1, 0
+        if lo < 0:
+            return 0, hi, m + lo, m - 1
+        if hi > m - 1:
+            return lo, m - 1, 0, hi - m
+        return lo, hi, 1, 0
+    return max(lo, 0), min(hi, m - 1), 1, 0
 
 
 @njit(cache=True)
-def _bounds(start, cell, ncell, period, order, bound):
+def _bounds(start, cell, ncell, period, reach, order, bound):
     """bound[k]: particles in the stencil cells of particle ``order[k]`` (a row-length bound)."""
     n = order.shape[0]
     nx = ncell[0]
@@ -202,8 +203,8 @@ def _bounds(start, cell, ncell, period, order, bound):
         c = cell[order[k]]
         cy = c // nx
         cx = c - cy * nx
-        xa0, xb0, xa1, xb1 = _spans(cx, nx, px)
-        ya0, yb0, ya1, yb1 = _spans(cy, ny, py)
+        xa0, xb0, xa1, xb1 = _spans(cx, nx, px, reach)
+        ya0, yb0, ya1, yb1 = _spans(cy, ny, py, reach)
         m = 0
         for ys in range(2):
             ylo = ya0 if ys == 0 else ya1
@@ -217,7 +218,7 @@ def _bounds(start, cell, ncell, period, order, bound):
 
 
 @njit(cache=True, parallel=True)
-def _scan(spos, order, start, cell, ncell, period, cut2, static, bstart, buf, counts):
+def _scan(spos, order, start, cell, ncell, period, reach, cut2, static, bstart, buf, counts):
     """Write the neighbours of every particle into its slice of ``buf`` (one distance pass).
 
     Particle ``order[k]`` owns ``buf[bstart[k]:bstart[k + 1]]``, long enough for every
@@ -241,8 +242,8 @@ def _scan(spos, order, start, cell, ncell, period, cut2, static, bstart, buf, co
         c = cell[i]
         cy = c // nx
         cx = c - cy * nx
-        xa0, xb0, xa1, xb1 = _spans(cx, nx, px)
-        ya0, yb0, ya1, yb1 = _spans(cy, ny, py)
+        xa0, xb0, xa1, xb1 = _spans(cx, nx, px, reach)
+        ya0, yb0, ya1, yb1 = _spans(cy, ny, py, reach)
         t0 = bstart[k]
         t = t0
         for ys in range(2):
@@ -259,9 +260,9 @@ def _scan(spos, order, start, cell, ncell, period, cut2, static, bstart, buf, co
                         dx = min_image(spos[q, 0] - xi, period[0], hx)
                         dy = min_image(spos[q, 1] - yi, period[1], hy)
                         j = order[q]
-                        inside = (dx * dx + dy * dy <= cut2) and q != k
+                        inside = (dx * dx + dy * dy <= cut2) & (q != k)
                         if si:
-                            inside = inside and not static[j]
+                            inside = inside & (not static[j])
                         buf[t] = j
                         t += inside
         counts[i] = t - t0
@@ -269,12 +270,14 @@ def _scan(spos, order, start, cell, ncell, period, cut2, static, bstart, buf, co
 
 @njit(cache=True, parallel=True)
 def _compact(order, bstart, buf, offsets, nbr):
+    """Copy each particle's neighbours from its ``buf`` slice to its CSR row (slice copies:
+    an element loop is ~7x slower here)."""
     for k in prange(order.shape[0]):
         i = order[k]
         a = offsets[i]
-        b0 = bstart[k]
-        for t in range(offsets[i + 1] - a):
-            nbr[a + t] = buf[b0 + t]
+        m = offsets[i + 1] - a
+        b = bstart[k]
+        nbr[a : a + m] = buf[b : b + m]
 
 
 @njit(cache=True)
@@ -350,13 +353,14 @@ def _gather_rows(pos, order, out):
 class CSRNeighbours:
     """Per-particle neighbour rows (both directions of every pair).
 
-    ``offsets`` (n + 1,) int64, ``nbr`` (M,) int32; ``order`` is the cell order of the particles
+    ``offsets`` (n + 1,) int64, ``nbr`` (M,) uint32 (do not mix it with signed integers in
+    numba arithmetic: int64 op uint64 gives float64); ``order`` is the cell order of the particles
     at build time (a good permutation for spatial locality).  ``dx`` (M, 2) and ``r`` (M,) are
     filled by :meth:`fill_geometry` only.
     """
 
     offsets: IntArray
-    nbr: NDArray[np.int32]
+    nbr: NDArray[np.uint32]
     n: int
     cutoff: float
     period: FloatArray
@@ -396,14 +400,19 @@ def build_csr(
     static: NDArray[np.bool_] | None = None,
     sort_rows: bool = False,
     geometry: bool = False,
+    reach: int = 2,
 ) -> CSRNeighbours:
     """All neighbours within ``cutoff`` of every particle, as CSR rows.
 
     ``static``: pairs whose two ends are both flagged are left out (rigid boundary-boundary
     pairs whose contribution a solver precomputes).  ``sort_rows`` orders each row by
     neighbour index (deterministic layout for comparisons; costs a sort per row).
-    ``geometry`` also fills ``dx`` and ``r``.
+    ``geometry`` also fills ``dx`` and ``r``.  ``reach``: cells are ``cutoff / reach`` wide and
+    the stencil spans +-reach cells (2: 25 cells of cutoff/2 scan ~30% fewer candidates than
+    9 cells of cutoff).
     """
+    if reach not in (1, 2, 3):
+        raise ValueError(f"build_csr: reach must be 1, 2 or 3, got {reach}")
     pos = _as_pos(pos)
     n = len(pos)
     if not cutoff > 0:
@@ -418,7 +427,7 @@ def build_csr(
     if len(st) != n:
         raise ValueError(f"build_csr: static has length {len(st)}, expected {n}")
     origin, size, ncell = _grid(
-        pos, float(cutoff), period, box_lo(box), _CELLS_PER_PARTICLE * n + 64
+        pos, float(cutoff), period, box_lo(box), _CELLS_PER_PARTICLE * n + 64, reach
     )
     ncells = int(ncell[0] * ncell[1])
     cell = np.empty(n, np.int64)
@@ -429,14 +438,16 @@ def build_csr(
     spos = np.empty((n, 2))
     _gather_rows(pos, order, spos)
     bstart = np.zeros(n + 1, np.int64)
-    _bounds(start, cell, ncell, period, order, bstart[1:])
+    _bounds(start, cell, ncell, period, reach, order, bstart[1:])
     np.cumsum(bstart[1:], out=bstart[1:])
-    buf = np.empty(int(bstart[-1]), np.int32)
+    buf = np.empty(int(bstart[-1]), np.uint32)
     counts = np.empty(n, np.int64)
-    _scan(spos, order, start, cell, ncell, period, float(cutoff) ** 2, st, bstart, buf, counts)
+    _scan(
+        spos, order, start, cell, ncell, period, reach, float(cutoff) ** 2, st, bstart, buf, counts
+    )
     offsets = np.zeros(n + 1, np.int64)
     np.cumsum(counts, out=offsets[1:])
-    nbr = np.empty(int(offsets[-1]), np.int32)
+    nbr = np.empty(int(offsets[-1]), np.uint32)
     _compact(order, bstart, buf, offsets, nbr)
     if sort_rows:
         _sort_rows(offsets, nbr)
