@@ -5,12 +5,13 @@ L of each periodic axis and 0.0 on free axes (:func:`box_period`).  Separations 
 :meth:`mpsbench.particles.Box.minimum_image` bit for bit: ``dx = r_j - r_i``, then on a periodic
 axis ``dx - L * rint(dx / L)``.
 
-Cells are at least ``cutoff`` wide, so every neighbour of a particle lies in its own cell or one
-of the 8 around it.  On a periodic axis the grid covers the period (``L / cs`` cells, a stencil
-that would reach the same cell twice when there are fewer than 3 is de-duplicated); on a free axis
-it covers the bounding box of the positions (capped at a few cells per particle: coarser cells
-stay correct, only slower, if one particle flies far away).  Particles are binned with a stable
-counting sort.
+Cells are at least ``cutoff / reach`` wide (``reach`` = 2 by default), so every neighbour of a
+particle lies within ``reach`` cells of its own along each axis.  On a periodic axis the grid
+covers the period (a stencil that would visit a cell twice is de-duplicated, one that wraps is
+split in two); on a free axis it covers the bounding box of the positions (capped at a few cells
+per particle: coarser cells stay correct, only slower, if one particle flies far away).
+Particles are binned with a stable counting sort; the cells of one stencil row are contiguous in
+that order and are scanned as one span.
 
 The CSR list holds both directions of every pair: row ``i`` is
 ``nbr[offsets[i]:offsets[i + 1]]`` (uint32: unsigned indices spare numba's negative-index
@@ -20,8 +21,10 @@ the positions on the fly, which reads 4 bytes per entry instead of 28 and lets o
 ``r_max + skin`` serve many steps (:class:`CellNeighbourList`).  :func:`csr_geometry` fills
 ``dx`` and ``r`` per entry when they are wanted.
 
-A pair at exactly ``r == cutoff`` may be in or out of the list depending on rounding (scipy's
-cKDTree decides it in a shifted frame); every MPS weight is zero there, so no operator changes.
+A pair at exactly ``r == cutoff`` (to the last bit) may be in or out of the list depending on
+rounding, as in scipy's cKDTree, which decides it in a shifted frame.  W is zero there but W' of
+wf1 is not, so :class:`CellNeighbourList` pads its cut-off by a relative 1e-12: with any skin,
+or none, every pair the kernels' own test ``r <= re`` accepts is in the list.
 """
 
 from __future__ import annotations
@@ -509,7 +512,8 @@ class CellNeighbourList:
 
     @property
     def cutoff(self) -> float:
-        return self.r_max + self.skin
+        """The list's cut-off: r_max + skin, padded so no pair at r == r_max is lost."""
+        return (self.r_max + self.skin) * (1.0 + 1e-12)
 
     def invalidate(self) -> None:
         self.csr = None
