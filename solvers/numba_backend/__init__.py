@@ -8,6 +8,8 @@ the install command, so the solver registry lists ``numba`` as unavailable with 
 * :mod:`.kernels`: number density, gradients (original, pgm1-3), divergence, the four Laplacian
   models (+ xu-jin gradient correction) on scalar and 2-vector fields, the Laplacian row sum
   for the stable time step, collision and stabilization increments.
+* :mod:`.timing`: ``python -m mpsbench.solvers.numba_backend.timing`` times one pass against
+  the numpy operators.
 
 The solver class (``NumbaSolver``) is not written yet.
 """
