@@ -188,7 +188,8 @@ def _noise_bars(prs: list, outdir: Path) -> Path | None:
         ax.set_title(title)
         ax.grid(axis="x", alpha=0.3)
         ax.ticklabel_format(axis="x", style="sci", scilimits=(-2, 3))
-    axes[0].legend(fontsize=7, loc="lower right")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside upper center", ncols=2, fontsize=8)
     path = outdir / "noise.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)

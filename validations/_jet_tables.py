@@ -241,7 +241,8 @@ def findings(records: list[dict[str, Any]]) -> str:
                 f"alpha_c {r.get('collision_distance') or 0:g}: noise {fmt(r.get('noise_spatial'))}"
                 f" / {fmt(r.get('noise_temporal'))}, drift mean "
                 f"{fmt(r.get('density_drift_mean'))}, penetrations {r.get('penetrations')}, "
-                f"Cp error {fmt(r.get('cp_rms_error'))}, acts on "
+                f"Cp error {fmt(r.get('cp_rms_error'))}, nearest neighbour "
+                f"{fmt(r.get('nn_distance_mean'))} l0, acts on "
                 f"{fmt(100 * (r.get('close_fraction') or 0.0), 2)}%"
                 for r in group
             ]
