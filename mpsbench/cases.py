@@ -44,12 +44,13 @@ class Param:
     def allowed(self) -> str:
         if self.choices is not None:
             return "one of " + ", ".join(str(c) for c in self.choices)
-        parts = [self.kind.__name__]
+        bounds = []
         if self.minimum is not None:
-            parts.append(f"{'>' if self.exclusive_minimum else '>='} {self.minimum:g}")
+            bounds.append(f"{'>' if self.exclusive_minimum else '>='} {self.minimum:g}")
         if self.maximum is not None:
-            parts.append(f"<= {self.maximum:g}")
-        return " ".join(parts)
+            bounds.append(f"<= {self.maximum:g}")
+        text = f"a {self.kind.__name__}"
+        return f"{text} {' and '.join(bounds)}" if bounds else text
 
     def parse(self, text: str) -> Any:
         """Convert text from ``--set key=value`` (or a TOML value) and validate it."""

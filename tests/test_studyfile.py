@@ -178,9 +178,9 @@ def test_plugin_model_name_is_accepted(tmp_path: Path) -> None:
           "allowed: laplacian, weight"]),
         # a negative spacing
         ('case = "study-toy"\n[params]\nl0 = -0.05\n',
-         ["params.l0: -0.05 is not allowed: float > 0 (m)"]),
+         ["params.l0: -0.05 is not allowed: a float > 0 (m)"]),
         ('case = "study-toy"\n[grid]\nl0 = [0.1, -0.05]\n',
-         ["grid.l0[1]: -0.05 is not allowed: float > 0 (m)"]),
+         ["grid.l0[1]: -0.05 is not allowed: a float > 0 (m)"]),
         # an unknown model name (the case's parameter has no choices: the registry decides)
         ('case = "study-toy"\n[grid]\nlaplacian = ["xu-jim"]\n',
          ["grid.laplacian[0]: unknown Laplacian model 'xu-jim' (did you mean 'xu-jin'?)",
@@ -207,7 +207,7 @@ def test_plugin_model_name_is_accepted(tmp_path: Path) -> None:
         ('case = "study-toy"\n[params]\nre_ratio = 2.0\n[grid]\nre_ratio = [3.0]\n',
          ["grid.re_ratio: also set in [params]"]),
         ('case = "study-toy"\n[grid]\nre_ratio = "many"\n',
-         ['grid.re_ratio: "many" is not allowed: float > 1']),
+         ['grid.re_ratio: "many" is not allowed: a float > 1']),
         ('case = "study-toy"\nname = "has space"\n', ['name: "has space" is not allowed']),
         ('case = "study-toy"\n[grid\n', ["not valid TOML"]),
     ],
@@ -268,7 +268,7 @@ def test_cli_bad_file_fails_before_any_run(
     out = tmp_path / "out"
     assert cli.main(["study", "run", str(path), "--out", str(out)]) == 2
     err = capsys.readouterr().err
-    assert "grid.l0[0]: -0.05 is not allowed: float > 0 (m)" in err and str(path) in err
+    assert "grid.l0[0]: -0.05 is not allowed: a float > 0 (m)" in err and str(path) in err
     assert not out.exists()
 
 
