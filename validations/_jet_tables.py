@@ -312,4 +312,15 @@ def _collision_verdict(group: list[dict[str, Any]]) -> str:
         lo, hi = min(vals, key=lambda t: t[1]), max(vals, key=lambda t: t[1])
         changes.append(f"{name} {fmt(lo[1])} (alpha_c {lo[0]:g}) to {fmt(hi[1])} "
                        f"(alpha_c {hi[0]:g})")
-    return f"Verdict: {pen}; range over alpha_c: " + "; ".join(changes) + "."
+    text = f"Verdict: {pen}; range over alpha_c: " + "; ".join(changes) + "."
+    idle = [r for r in group[1:] if r.get("collision_distance") and r.get("close_fraction") == 0.0]
+    if idle and not base.get("collision_distance"):
+        r = idle[0]
+        text += (
+            f" alpha_c {r['collision_distance']:g} never had a pair that close in the window's "
+            f"snapshots, so its differences from alpha_c 0 (spatial noise "
+            f"{fmt(base.get('noise_spatial'))} vs {fmt(r.get('noise_spatial'))}, temporal "
+            f"{fmt(base.get('noise_temporal'))} vs {fmt(r.get('noise_temporal'))}, Cp error "
+            f"{fmt(base.get('cp_rms_error'))} vs {fmt(r.get('cp_rms_error'))}) show the "
+            f"run-to-run scatter of a perturbed run.")
+    return text
