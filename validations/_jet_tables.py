@@ -143,7 +143,8 @@ def run_table(records: list[dict[str, Any]]) -> pd.DataFrame:
     for r in sorted(completed(records), key=lambda r: (resolution(r), r["gradient"], r["weight"],
                                                       r.get("collision_distance") or 0.0,
                                                       bool(r["stabilization"]))):
-        row = {"model": label(r), "stabilization": "on" if r["stabilization"] else "off"}
+        row: dict[str, Any] = {"model": label(r),
+                               "stabilization": "on" if r["stabilization"] else "off"}
         row.update({c: r.get(c) for c in PLATE_COLUMNS})
         row["stabilization_re"] = stabilization_re(r)
         rows.append(row)
@@ -305,8 +306,8 @@ def _collision_verdict(group: list[dict[str, Any]]) -> str:
     changes = []
     for m, name in (("noise_spatial", "spatial noise"), ("noise_temporal", "temporal noise"),
                     ("cp_rms_error", "Cp error")):
-        vals = [(r.get("collision_distance") or 0.0, r.get(m)) for r in group]
-        vals = [(a, v) for a, v in vals if v is not None and math.isfinite(v)]
+        vals = [(float(r.get("collision_distance") or 0.0), float(r[m])) for r in group
+                if r.get(m) is not None and math.isfinite(r[m])]
         if len(vals) < 2 or not base.get(m):
             continue
         lo, hi = min(vals, key=lambda t: t[1]), max(vals, key=lambda t: t[1])

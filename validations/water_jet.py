@@ -174,7 +174,7 @@ class WaterJetCase(Case):
 
         n_frames = int(round(params["t_window"] / FRAME))
         sensors = plate_points(geo, SENSOR_MAX, SENSOR_STEP)
-        plate = PointPressure("plate", sensors, SENSOR_RADIUS * l0, every=SAMPLE * scale)
+        plate = PointPressure("plate", sensors.tolist(), SENSOR_RADIUS * l0, every=SAMPLE * scale)
         frames = Callback("frames", frame, at=t_start + np.arange(n_frames + 1) * FRAME * scale)
         pen = Callback("penetration", lambda s: penetrations(s.state().pos, s.state().kind,
                                                              geo.half_plate),
