@@ -5,12 +5,13 @@
 # 1 when a case fails or a metric regressed; 2 when the baseline is unusable.
 # Usage: .ci/validate_smoke.sh [OUT]    OUT: report folder (default: a new temp folder)
 #        JOBS=N .ci/validate_smoke.sh   worker processes (default 2)
+#        BASELINE=PATH                  another baseline folder or results.json
 set -euo pipefail
 
 cd "$(dirname "$0")/.."
 python="${PYTHON:-python}"
 out="${1:-$(mktemp -d "${TMPDIR:-/tmp}/mpsbench-smoke.XXXXXX")}"
-baseline=validations/baselines/smoke
+baseline="${BASELINE:-validations/baselines/smoke}"
 
 status=0
 "$python" -m mpsbench validate all --tier smoke --jobs "${JOBS:-2}" --out "$out" || status=$?
