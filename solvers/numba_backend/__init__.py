@@ -8,10 +8,11 @@ the install command, so the solver registry lists ``numba`` as unavailable with 
 * :mod:`.kernels`: number density, gradients (original, pgm1-3), divergence, the four Laplacian
   models (+ xu-jin gradient correction) on scalar and 2-vector fields, the Laplacian row sum
   for the stable time step, collision and stabilization increments.
+* :mod:`.steps`: the per-particle updates of a WC-MPS step, setup constants, the diffusion
+  operator as per-entry coefficients.
+* :mod:`.solver`: :class:`NumbaSolver`, registry name ``numba``.
 * :mod:`.timing`: ``python -m mpsbench.solvers.numba_backend.timing`` times one pass against
   the numpy operators.
-
-The solver class (``NumbaSolver``) is not written yet.
 """
 
 try:
@@ -19,14 +20,17 @@ try:
 except ImportError as exc:  # pragma: no cover - exercised only without numba
     raise ImportError("numba is not installed: pip install 'mpsbench[fast]'") from exc
 
-from . import cells, kernels
+from . import cells, kernels, steps
 from .cells import CellNeighbourList, CSRNeighbours, build_csr, build_pairs_cells
+from .solver import NumbaSolver
 
 __all__ = [
     "CSRNeighbours",
     "CellNeighbourList",
+    "NumbaSolver",
     "build_csr",
     "build_pairs_cells",
     "cells",
     "kernels",
+    "steps",
 ]

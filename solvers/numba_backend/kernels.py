@@ -29,8 +29,13 @@ per-particle arrays: a particle whose mask is false neither receives nor contrib
 reference backend leaves dummy particles out of the pressure gradient this way); ``kind`` is
 the int8 :class:`mpsbench.particles.Kind` array (0 = fluid).  A coincident pair (r = 0)
 contributes nothing (the reference would produce inf/NaN for it).  Units follow the inputs (SI
-in the solvers).  Inner loops compute every term and select it with ``0 < r <= re`` instead of
-branching (about 20% faster; a selected 0.0 adds nothing, so the result is the same).
+in the solvers).
+
+The support is closed under rounding exactly as in :mod:`mpsbench.kernels`: a pair counts when
+``0 < r <= re (1 + SUPPORT_RTOL)``, and W, W', W'' are evaluated at ``min(r, re)`` (divisions by
+r use r itself, as the numpy models do).  On a square lattice with an integer r_e/l0 about half
+of the neighbours at r_e sit a rounding error outside it; W' of wf1 is not zero there, so
+dropping them would change khayyer-gotoh, xu-jin-analytic and the stabilization.
 """
 
 from __future__ import annotations
@@ -38,9 +43,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from mpsbench.kernels import SUPPORT_RTOL
+
 from .cells import half_width, min_image
 
 DIM = 2.0  # D_s
+SUPPORT = 1.0 + SUPPORT_RTOL  # a pair is inside when r <= re * SUPPORT
 
 WEIGHT_CODES = {"wf1": 1, "wf2": 2}
 LAPLACIAN_CODES = {"koshizuka-oka": 1, "khayyer-gotoh": 2, "xu-jin": 3, "xu-jin-analytic": 4}
@@ -83,8 +91,9 @@ def laplacian_prefactor(model: int, n0: float, lam: float) -> float:
 
 # --------------------------------------------------------------------------- inline pieces
 #
-# The _*_in helpers are the formulas for 0 < r <= re; callers select their result with the
-# reference's own test ``r <= re`` on r = sqrt(dx^2 + dy^2).  ``inv_re`` = 1 / re.
+# The _*_in helpers are the formulas for 0 < r <= re; callers pass rc = min(r, re) and select
+# the result with the closed-support test ``0 < r <= re * SUPPORT`` on r = sqrt(dx^2 + dy^2).
+# ``inv_re`` = 1 / re.
 
 
 @njit(cache=True, inline="always")
@@ -111,38 +120,45 @@ def _d2w_in(wcode, r, re, inv_re):
 
 
 @njit(cache=True, inline="always")
-def _coef_in(model, wcode, r, r2, re, inv_re, pref):
+def _coef_in(model, wcode, r, rc, r2, re, inv_re, pref):
+    """Laplacian pair coefficient: weights at ``rc`` = min(r, re), divisions by ``r``."""
     if model == 1:
-        return pref * _w_in(wcode, r, re, inv_re)
+        return pref * _w_in(wcode, rc, re, inv_re)
     if model == 2:
-        return pref * (_d2w_in(wcode, r, re, inv_re) - _dw_in(wcode, r, re, inv_re) / r)
+        return pref * (_d2w_in(wcode, rc, re, inv_re) - _dw_in(wcode, rc, re, inv_re) / r)
     if model == 3:
-        return pref * (_w_in(wcode, r, re, inv_re) / r2)
-    return pref * (-_dw_in(wcode, r, re, inv_re) / r)
+        return pref * (_w_in(wcode, rc, re, inv_re) / r2)
+    return pref * (-_dw_in(wcode, rc, re, inv_re) / r)
+
+
+@njit(cache=True, inline="always")
+def _inside(r, r2, re_s):
+    """The closed support under rounding: 0 < r <= re (1 + SUPPORT_RTOL) (``re_s``)."""
+    return (r <= re_s) & (r2 > 0.0)
 
 
 @njit(cache=True)
 def weight(wcode, r, re):
-    """W(r): wf1 = re/r - 1, wf2 = (1 - r/re)^3; 0 beyond re (and at r = 0)."""
-    if r > re or r <= 0.0:
+    """W(r): wf1 = re/r - 1, wf2 = (1 - r/re)^3; 0 beyond the support (and at r = 0)."""
+    if not r <= re * SUPPORT or r <= 0.0:
         return 0.0
-    return _w_in(wcode, r, re, 1.0 / re)
+    return _w_in(wcode, min(r, re), re, 1.0 / re)
 
 
 @njit(cache=True)
 def dweight(wcode, r, re):
-    """W'(r): wf1 = -re/r^2, wf2 = -(3/re)(1 - r/re)^2; 0 beyond re (and at r = 0)."""
-    if r > re or r <= 0.0:
+    """W'(r): wf1 = -re/r^2, wf2 = -(3/re)(1 - r/re)^2; 0 beyond the support (and at r = 0)."""
+    if not r <= re * SUPPORT or r <= 0.0:
         return 0.0
-    return _dw_in(wcode, r, re, 1.0 / re)
+    return _dw_in(wcode, min(r, re), re, 1.0 / re)
 
 
 @njit(cache=True)
 def d2weight(wcode, r, re):
-    """W''(r): wf1 = 2 re/r^3, wf2 = (6/re^2)(1 - r/re); 0 beyond re (and at r = 0)."""
-    if r > re or r <= 0.0:
+    """W''(r): wf1 = 2 re/r^3, wf2 = (6/re^2)(1 - r/re); 0 beyond the support (and at r = 0)."""
+    if not r <= re * SUPPORT or r <= 0.0:
         return 0.0
-    return _d2w_in(wcode, r, re, 1.0 / re)
+    return _d2w_in(wcode, min(r, re), re, 1.0 / re)
 
 
 @njit(cache=True)
@@ -150,17 +166,17 @@ def lap_coef(model, wcode, r, re, pref):
     """Pair coefficient c_ij of a Laplacian; ``pref`` from :func:`laplacian_prefactor`.
 
     1 koshizuka-oka: pref W; 2 khayyer-gotoh: pref (W'' - W'/r); 3 xu-jin: pref W / r^2;
-    4 xu-jin-analytic: pref (-W'/r)  (2-D forms).  0 beyond re (and at r = 0).
+    4 xu-jin-analytic: pref (-W'/r)  (2-D forms).  0 beyond the support (and at r = 0).
     """
-    if r > re or r <= 0.0:
+    if not r <= re * SUPPORT or r <= 0.0:
         return 0.0
-    return _coef_in(model, wcode, r, r * r, re, 1.0 / re, pref)
+    return _coef_in(model, wcode, r, min(r, re), r * r, re, 1.0 / re, pref)
 
 
 # --------------------------------------------------------------------------- number density
 #
 # Inner loops are branch-free where it pays: every term is computed and then selected with
-# ``inside`` (0 < r <= re, the reference's own test on the same r), which avoids mispredicted
+# ``inside`` (0 < r <= re (1 + SUPPORT_RTOL), the reference's own test), which avoids mispredicted
 # branches on the ragged edge of the support (measured ~20% faster than skipping).  A selected
 # 0.0 adds nothing, so results equal the skipping form bit for bit.
 
@@ -181,6 +197,7 @@ def number_density(offsets, nbr, pos, period, wcode, re, out):
     hx = half_width(px)
     hy = half_width(py)
     inv_re = 1.0 / re
+    re_s = re * SUPPORT
     for i in prange(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
@@ -188,8 +205,8 @@ def number_density(offsets, nbr, pos, period, wcode, re, out):
         for k in range(offsets[i], offsets[i + 1]):
             _, _, r2 = _sep(pos, nbr[k], xi, yi, px, py, hx, hy)
             r = np.sqrt(r2)
-            w = _w_in(wcode, r, re, inv_re)
-            s += w if (r <= re) & (r2 > 0.0) else 0.0
+            w = _w_in(wcode, min(r, re), re, inv_re)
+            s += w if _inside(r, r2, re_s) else 0.0
         out[i] = s
     return out
 
@@ -207,6 +224,7 @@ def gradient(offsets, nbr, pos, period, phi, wcode, re, n0, out):
     hx = half_width(px)
     hy = half_width(py)
     inv_re = 1.0 / re
+    re_s = re * SUPPORT
     for i in prange(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
@@ -217,8 +235,8 @@ def gradient(offsets, nbr, pos, period, phi, wcode, re, n0, out):
             j = nbr[k]
             dx, dy, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
             r = np.sqrt(r2)
-            q = _w_in(wcode, r, re, inv_re) / r2
-            q = q if (r <= re) & (r2 > 0.0) else 0.0
+            q = _w_in(wcode, min(r, re), re, inv_re) / r2
+            q = q if _inside(r, r2, re_s) else 0.0
             c = (phi[j] - phii) * q
             gx += c * dx
             gy += c * dy
@@ -237,6 +255,7 @@ def divergence(offsets, nbr, pos, period, u, wcode, re, n0, out):
     hx = half_width(px)
     hy = half_width(py)
     inv_re = 1.0 / re
+    re_s = re * SUPPORT
     for i in prange(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
@@ -247,8 +266,8 @@ def divergence(offsets, nbr, pos, period, u, wcode, re, n0, out):
             j = nbr[k]
             dx, dy, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
             r = np.sqrt(r2)
-            q = _w_in(wcode, r, re, inv_re) / r2
-            q = q if (r <= re) & (r2 > 0.0) else 0.0
+            q = _w_in(wcode, min(r, re), re, inv_re) / r2
+            q = q if _inside(r, r2, re_s) else 0.0
             s += ((u[j, 0] - ui) * dx + (u[j, 1] - vi) * dy) * q
         out[i] = f * s
     return out
@@ -315,6 +334,7 @@ def pressure_gradient(offsets, nbr, pos, period, p, pmin, mask, model, wcode, re
     hx = half_width(px)
     hy = half_width(py)
     inv_re = 1.0 / re
+    re_s = re * SUPPORT
     for i in prange(n):
         gx = 0.0
         gy = 0.0
@@ -331,8 +351,8 @@ def pressure_gradient(offsets, nbr, pos, period, p, pmin, mask, model, wcode, re
                     continue
                 dx, dy, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
                 r = np.sqrt(r2)
-                q = _w_in(wcode, r, re, inv_re) / r2
-                q = q if (r <= re) & (r2 > 0.0) else 0.0
+                q = _w_in(wcode, min(r, re), re, inv_re) / r2
+                q = q if _inside(r, r2, re_s) else 0.0
                 if model == 2:
                     pij = (pi + p[j]) - (pmin[i] + pmin[j])
                 elif model == 1:
@@ -386,6 +406,7 @@ def laplacian_field(offsets, nbr, pos, period, phi, model, wcode, re, pref, n0, 
     hx = half_width(px)
     hy = half_width(py)
     inv_re = 1.0 / re
+    re_s = re * SUPPORT
     for i in prange(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
@@ -404,8 +425,9 @@ def laplacian_field(offsets, nbr, pos, period, phi, model, wcode, re, pref, n0, 
             j = nbr[k]
             dx, dy, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
             r = np.sqrt(r2)
-            inside = (r <= re) & (r2 > 0.0)
-            c = _coef_in(model, wcode, r, r2, re, inv_re, pref)
+            rc = min(r, re)
+            inside = _inside(r, r2, re_s)
+            c = _coef_in(model, wcode, r, rc, r2, re, inv_re, pref)
             c = c if inside else 0.0
             d0 = phi[j, 0] - ui
             s0 += c * d0
@@ -417,7 +439,7 @@ def laplacian_field(offsets, nbr, pos, period, phi, model, wcode, re, pref, n0, 
             if gcorr:
                 bx += c * dx
                 by += c * dy
-                q = _w_in(wcode, r, re, inv_re) / r2
+                q = _w_in(wcode, rc, re, inv_re) / r2
                 q = q if inside else 0.0
                 g0x += d0 * q * dx
                 g0y += d0 * q * dy
@@ -548,6 +570,7 @@ def stabilization(
     hx = half_width(px)
     hy = half_width(py)
     inv_re = 1.0 / re
+    re_s = re * SUPPORT
     for i in prange(n):
         s0 = 0.0
         s1 = 0.0
@@ -562,8 +585,8 @@ def stabilization(
                     continue
                 _, _, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
                 r = np.sqrt(r2)
-                dw = _dw_in(wcode, r, re, inv_re)
-                dw = dw if (r <= re) & (r2 > 0.0) else 0.0
+                dw = _dw_in(wcode, min(r, re), re, inv_re)
+                dw = dw if _inside(r, r2, re_s) else 0.0
                 s0 += dw * (vel[j, 0] - ui)
                 s1 += dw * (vel[j, 1] - vi)
         out[i, 0] = f * s0
