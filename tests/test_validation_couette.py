@@ -133,7 +133,6 @@ def test_rate_error_models_at_l_20() -> None:
         assert cell(laplacian=model, weight="wf2", re_ratio=2.1, l0=L / 20)["l2_error"] > 0.05
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("model", cou.RATE_MODELS)
 @pytest.mark.parametrize("weight", ["wf1", "wf2"])
 def test_rate_error_models_above_five_percent_at_l_40(model: str, weight: str) -> None:

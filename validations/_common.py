@@ -263,3 +263,22 @@ def span(values: Any, fmt: Any, sep: str = "-") -> str:
     """``fmt(min)-fmt(max)``, or one value when they print the same."""
     lo, hi = fmt(float(np.min(values))), fmt(float(np.max(values)))
     return lo if lo == hi else f"{lo}{sep}{hi}"
+
+
+def weight_ratio_line(df: pd.DataFrame, value: str, where: str) -> str:
+    """Plain words: the WF1 / WF2 ratio of ``value`` per model at the same r_e/l0."""
+    if df.empty or not {"wf1", "wf2"} <= set(df["weight"]):
+        return ""
+    keys = ["laplacian", "re_ratio"]
+    w1 = df[df["weight"] == "wf1"].groupby(keys)[value].first()
+    w2 = df[df["weight"] == "wf2"].groupby(keys)[value].first()
+    both = pd.concat([w1.rename("a"), w2.rename("b")], axis=1, join="inner").dropna()
+    both = both[both["b"] > 0]
+    if both.empty:
+        return ""
+    parts = []
+    for model in sorted(both.index.get_level_values(0).unique(), key=model_sort_key):
+        ratio = both.loc[model, "a"] / both.loc[model, "b"]
+        parts.append(f"{model} {span(ratio, lambda v: f'{v:.2f}')}")
+    return (f"- **WF1 / WF2** error ratio at the same r_e/l0 ({where}): " + "; ".join(parts)
+            + " (1 = insensitive to the weighting function).")

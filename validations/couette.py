@@ -385,6 +385,12 @@ class CouetteCase(Case):
         line = _treatment_line(df)
         if line:
             lines.append(line)
+        d = _default_walls(df)
+        if not d.empty:
+            line = cm.weight_ratio_line(d[d["n"] == d["n"].max()], "l2_error",
+                                        f"L/{d['n'].max()}, prescribed walls")
+            if line:
+                lines.append(line)
         lines += _convergence_lines(convergence_table(df))
         steady = df[df["l2_error_steady"].notna()] if "l2_error_steady" in df else df.iloc[:0]
         if not steady.empty:

@@ -264,15 +264,22 @@ class DiffusionCase(Case):
         lines = []
         for (l0, jit), group in _resolution_groups(df):
             lines.append(_summary_line(group, l0, jit))
+        head = _select(df, jitter=0.0, l0=_headline_l0(df))
+        line = cm.weight_ratio_line(head, "l2_error",
+                                    f"l0 = {cm.fraction(_headline_l0(df))}, regular lattice")
+        if line:
+            lines.append(line)
         lines += _convergence_lines(convergence_table(df))
         tt = time_table(df)
         if not tt.empty:
             worst = tt["time_error_share"].max()
+            verdict = ("the errors above are spatial" if worst < MAX_TIME_ERROR_SHARE else
+                       "the time-stepping error is NOT negligible everywhere: use a smaller dt")
             lines.append(
                 f"- **Time stepping**: halving dt (= {tt['dt'].max():g} s) moves the end field by "
                 f"at most {tt['dt_halving_change'].max():.2e} (forward Euler's error is about "
                 f"twice that), at most {worst:.1%} of the smallest spatial error of the same "
-                "model, WF, radius and jitter: the errors above are spatial.")
+                f"model, WF, radius and jitter: {verdict}.")
         return "\n".join(lines)
 
 
@@ -295,13 +302,20 @@ def field_errors(
 
 
 def _select(df: pd.DataFrame, **eq: float) -> pd.DataFrame:
+    """Rows whose float columns equal the given values (to rounding)."""
     if df.empty:
         return df
     mask = np.ones(len(df), dtype=bool)
     for col, val in eq.items():
-        mask &= np.isclose(df[col].to_numpy(float), val, rtol=1e-9, atol=0.0) if val else (
-            df[col].to_numpy(float) == 0.0)
+        mask &= np.isclose(df[col].to_numpy(float), val, rtol=1e-9, atol=1e-15)
     return df[mask]
+
+
+def _headline_l0(df: pd.DataFrame) -> float:
+    """l0 = 1/40 when the study has it, else the finest."""
+    values = sorted(df["l0"].unique())
+    near = [h for h in values if abs(h - LATTICE_L0) < 1e-12]
+    return float(near[0] if near else values[0])
 
 
 def _resolution_groups(df: pd.DataFrame) -> list[tuple[tuple[float, float], pd.DataFrame]]:
