@@ -15,10 +15,19 @@ the install command, so the solver registry lists ``numba`` as unavailable with 
   the numpy operators.
 """
 
+import os
+
 try:
     import numba  # noqa: F401
 except ImportError as exc:  # pragma: no cover - exercised only without numba
     raise ImportError("numba is not installed: pip install 'mpsbench[fast]'") from exc
+
+# numba's OpenMP threading layer (libgomp, loaded at the first parallel kernel) spins in every
+# barrier by default.  On a loaded machine, or next to other worker processes, the spinning
+# thread steals the core the working one needs: measured at N = 40k with a load of 6 on 2 cores,
+# a step took 3x the single-thread wall time and 3x its CPU time.  Sleeping waits cost a few
+# microseconds per kernel on an idle machine.  A value the user set wins.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from . import cells, kernels, steps
 from .cells import CellNeighbourList, CSRNeighbours, build_csr, build_pairs_cells

@@ -317,7 +317,7 @@ def neighbour_min(offsets, nbr, pos, period, p, mask, wcode, re, out):
 
 
 @njit(cache=True, parallel=True)
-def pressure_gradient(offsets, nbr, pos, period, p, pmin, mask, model, wcode, re, n0, out):
+def pressure_gradient(offsets, nbr, pos, period, p, pmin, mask, model, wcode, re, n0, out, rows):
     """PGM ``model`` (:data:`GRADIENT_CODES`) of the pressure ``p``; out (n, 2).
 
     (D/n0) sum_j P_ij r_ij W_ij / r_ij^2 over neighbours with ``mask`` set, with
@@ -325,7 +325,9 @@ def pressure_gradient(offsets, nbr, pos, period, p, pmin, mask, model, wcode, re
     2 pgm2 (Khayyer & Gotoh 2008): P = (p_i + p_j) - (pmin_i + pmin_j), ``pmin`` from
     :func:`neighbour_min` with the same mask, weight and re;
     3 pgm3 (symmetric form): P = p_i + p_j (``pmin`` unused).
-    Masked-out rows get 0.  The wrappers :func:`pgm1`, :func:`pgm2`, :func:`pgm3` name them.
+    Masked-out rows get 0.  ``rows``: a boolean array of the rows wanted (the others get 0;
+    a solver needs fluid rows only), or an empty one for all.  The wrappers :func:`pgm1`,
+    :func:`pgm2`, :func:`pgm3` name the models.
     """
     n = offsets.shape[0] - 1
     f = DIM / n0
@@ -335,10 +337,11 @@ def pressure_gradient(offsets, nbr, pos, period, p, pmin, mask, model, wcode, re
     hy = half_width(py)
     inv_re = 1.0 / re
     re_s = re * SUPPORT
+    some = rows.shape[0] > 0
     for i in prange(n):
         gx = 0.0
         gy = 0.0
-        if mask[i]:
+        if mask[i] and (not some or rows[i]):
             xi = pos[i, 0]
             yi = pos[i, 1]
             pi = p[i]
@@ -367,26 +370,37 @@ def pressure_gradient(offsets, nbr, pos, period, p, pmin, mask, model, wcode, re
     return out
 
 
+_ALL_ROWS = np.zeros(0, dtype=np.bool_)
+
+
 def pgm1(offsets, nbr, pos, period, p, mask, wcode, re, n0, out):
     """PGM1 (Eq. 6): (D/n0) sum_j (p_j - pmin_i) r_ij W / r^2, p_min,i fused in; out (n, 2)."""
-    return pressure_gradient(offsets, nbr, pos, period, p, p, mask, 1, wcode, re, n0, out)
+    return pressure_gradient(
+        offsets, nbr, pos, period, p, p, mask, 1, wcode, re, n0, out, _ALL_ROWS
+    )
 
 
 def pgm2(offsets, nbr, pos, period, p, pmin, mask, wcode, re, n0, out):
     """PGM2: (D/n0) sum_j [(p_i + p_j) - (pmin_i + pmin_j)] r_ij W / r^2; out (n, 2)."""
-    return pressure_gradient(offsets, nbr, pos, period, p, pmin, mask, 2, wcode, re, n0, out)
+    return pressure_gradient(
+        offsets, nbr, pos, period, p, pmin, mask, 2, wcode, re, n0, out, _ALL_ROWS
+    )
 
 
 def pgm3(offsets, nbr, pos, period, p, mask, wcode, re, n0, out):
     """PGM3 (symmetric form): (D/n0) sum_j (p_i + p_j) r_ij W / r^2; out (n, 2)."""
-    return pressure_gradient(offsets, nbr, pos, period, p, p, mask, 3, wcode, re, n0, out)
+    return pressure_gradient(
+        offsets, nbr, pos, period, p, p, mask, 3, wcode, re, n0, out, _ALL_ROWS
+    )
 
 
 # --------------------------------------------------------------------------- Laplacians
 
 
 @njit(cache=True, parallel=True)
-def laplacian_field(offsets, nbr, pos, period, phi, model, wcode, re, pref, n0, gcorr, out, rowsum):
+def laplacian_field(
+    offsets, nbr, pos, period, phi, model, wcode, re, pref, n0, gcorr, out, rowsum, rows
+):
     """Laplacian ``model`` of each column of ``phi`` (n, k), k = 1 or 2; out (n, k).
 
     lap(phi)_i = sum_j c_ij (phi_j - phi_i) [- B_i . grad(phi)_i]: ``pref`` =
@@ -394,6 +408,7 @@ def laplacian_field(offsets, nbr, pos, period, phi, model, wcode, re, pref, n0, 
     B_i = sum_j c_ij r_ij and grad is the original gradient (D/n0) sum phi_ij r_ij W / r^2 at
     the same ``re`` (``n0`` is used only there).  ``rowsum``: an (n,) array that receives
     sum_j |c_ij| (fused: the stable time step comes with the viscous term), or an empty array.
+    ``rows``: a boolean array of the rows wanted (the others get 0), or an empty one for all.
     The wrappers :func:`laplacian` (scalar), :func:`laplacian_vec` and
     :func:`laplacian_abs_rowsum` call this one kernel.
     """
@@ -407,7 +422,15 @@ def laplacian_field(offsets, nbr, pos, period, phi, model, wcode, re, pref, n0, 
     hy = half_width(py)
     inv_re = 1.0 / re
     re_s = re * SUPPORT
+    some = rows.shape[0] > 0
     for i in prange(n):
+        if some and not rows[i]:
+            out[i, 0] = 0.0
+            if two:
+                out[i, 1] = 0.0
+            if want_rows:
+                rowsum[i] = 0.0
+            continue
         xi = pos[i, 0]
         yi = pos[i, 1]
         ui = phi[i, 0]
@@ -478,6 +501,7 @@ def laplacian(offsets, nbr, pos, period, phi, model, wcode, re, pref, n0, gcorr,
         gcorr,
         res,
         _NO_ROWS,
+        _ALL_ROWS,
     )
     if not out.flags.c_contiguous:
         out[:] = res[:, 0]
@@ -489,7 +513,7 @@ def laplacian_vec(
 ):
     """lap(u) of a (n, 2) field into ``out`` (n, 2); ``rowsum`` as in :func:`laplacian_field`."""
     return laplacian_field(
-        offsets, nbr, pos, period, u, model, wcode, re, pref, n0, gcorr, out, rowsum
+        offsets, nbr, pos, period, u, model, wcode, re, pref, n0, gcorr, out, rowsum, _ALL_ROWS
     )
 
 
@@ -504,7 +528,8 @@ def laplacian_abs_rowsum(offsets, nbr, pos, period, model, wcode, re, pref, out)
     n = offsets.shape[0] - 1
     zero = np.zeros((n, 1))
     laplacian_field(
-        offsets, nbr, pos, period, zero, model, wcode, re, pref, 1.0, False, zero.copy(), out
+        offsets, nbr, pos, period, zero, model, wcode, re, pref, 1.0, False, zero.copy(), out,
+        _ALL_ROWS,
     )
     return out
 

@@ -259,9 +259,9 @@ class NumbaSolver(SolverBase):
             u = mirror_velocity(self.p, self.weight, self.re, self.box)
         kernels.laplacian_field(
             *big, self.p.pos, self.period, u, self.lcode, self.wcode, self.re_lap, self.pref,
-            self.n0_lap, self.gcorr, self._lap, self._rows,
+            self.n0_lap, self.gcorr, self._lap, self._rows, self.p.kind == Kind.FLUID,
         )
-        self._lap_rowsum = float(steps.max_over(self._rows, self.p.kind, True))
+        self._lap_rowsum = float(steps.max_over(self._rows, self.p.kind, True))  # fluid rows
 
     def _advance_flow(self, dt: float, ph: FlowPhysics) -> None:
         p = self.p
@@ -293,7 +293,7 @@ class NumbaSolver(SolverBase):
             )
         kernels.pressure_gradient(
             *small, p.pos, self.period, p.pressure, self._pmin if self.gcode == 2 else p.pressure,
-            no_dummy, self.gcode, self.wcode, self.re, self.n0, self._grad,
+            no_dummy, self.gcode, self.wcode, self.re, self.n0, self._grad, kind == Kind.FLUID,
         )
         steps.pressure_increment(self._grad, kind, -(dt / ph.rho0), self._du)
         if ph.collision:

@@ -79,6 +79,26 @@ def static_density(offsets, nbr, pos, period, wcode, re, group, loose, out):
 # --------------------------------------------------------------------------- flow step
 
 
+@njit(cache=True, inline="always")
+def _power(x, gamma, igamma):
+    """x**gamma; by repeated squaring when gamma is a whole number 1..16 (``igamma`` > 0).
+
+    pow() costs about as much as a dozen neighbour terms; squaring is a few multiplications
+    and differs from it by a few ulp (Tait's gamma = 7: x * x^2 * x^4).
+    """
+    if igamma == 0:
+        return x**gamma
+    result = 1.0
+    base = x
+    e = igamma
+    while e > 0:
+        if e & 1:
+            result *= base
+        base *= base
+        e >>= 1
+    return result
+
+
 @njit(cache=True, parallel=True)
 def density_pressure(
     offsets, nbr, pos, period, wcode, re, static_n, kind, n0, tait, prefactor, gamma, clip,
@@ -100,6 +120,7 @@ def density_pressure(
     inv_re = 1.0 / re
     re_s = re * SUPPORT
     threshold = beta * n0
+    igamma = int(gamma) if gamma == np.floor(gamma) and 1.0 <= gamma <= 16.0 else 0
     for i in prange(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
@@ -113,7 +134,7 @@ def density_pressure(
         n_out[i] = ni
         ratio = ni / n0
         if tait:
-            pres = prefactor * (ratio**gamma - 1.0)
+            pres = prefactor * (_power(ratio, gamma, igamma) - 1.0)
         else:
             pres = prefactor * (ratio - 1.0)
         if clip and not pres >= 0.0:  # np.maximum(pres, 0): NaN stays NaN
