@@ -1,0 +1,270 @@
+"""The numba backend against the reference backend: same problems, same answers (issue 8).
+
+Operators agree with :mod:`mpsbench.operators` to 1e-10 relative (tests/test_numba_kernels.py,
+plus here the lattice at an integer r_e/l0, where half of the neighbours at r_e sit a rounding
+error outside it); diffusion and Couette runs to 1e-8; a WC-MPS dam break over 200 steps to
+1e-6 l0 in positions (measured: about 1e-13 l0; the backends differ only in the order of
+floating-point sums).  The conformance kit runs on ``numba`` too, and the registry lists it as
+unavailable, with the reason, when numba cannot be imported.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from mpsbench import operators as ops
+from mpsbench.config import Models
+from mpsbench.kernels import get_weight
+from mpsbench.neighbours import build_pairs
+from mpsbench.protocol import Problem, make_solver
+from mpsbench.runner import run
+from mpsbench.testing import parametrize_solver_checks, problems
+
+numba = pytest.importorskip("numba")
+backend = pytest.importorskip("mpsbench.solvers.numba_backend")
+kernels, cells = backend.kernels, backend.cells
+NumbaSolver = backend.NumbaSolver
+
+
+def advance(name: str | object, problem: Problem, n_steps: int):
+    """A solver (registry name or instance) set up on ``problem`` after ``n_steps`` steps."""
+    s = make_solver(name)  # type: ignore[arg-type]
+    s.setup(problem)
+    for _ in range(n_steps):
+        s.step(s.stable_dt())
+    return s
+
+
+def both(build, n_steps: int):
+    return advance("reference", build(), n_steps), advance("numba", build(), n_steps)
+
+
+def rel(a: np.ndarray, b: np.ndarray) -> float:
+    scale = float(np.max(np.abs(b))) or 1.0
+    return float(np.max(np.abs(a - b))) / scale
+
+
+# --------------------------------------------------------------------------- operators
+
+
+@pytest.mark.parametrize("lname", ["khayyer-gotoh", "xu-jin-analytic", "koshizuka-oka", "xu-jin"])
+@pytest.mark.parametrize("rr", [2.0, 3.0, 4.0])
+def test_laplacian_on_lattice_with_neighbours_on_the_support_edge(lname, rr):
+    """r_e/l0 integer: neighbours at r = r_e count (closed support), W' of wf1 is not 0 there."""
+    l0 = 1 / 40
+    pos, box = ops.lattice_pairs(40, l0)
+    re = rr * l0
+    wf = get_weight("wf1")
+    pl = build_pairs(pos, re, box)
+    assert np.any(pl.r > re), "the lattice must have pairs a rounding error beyond r_e"
+    phi = np.sin(2 * np.pi * pos[:, 0]) * np.sin(2 * np.pi * pos[:, 1])
+    n0, lam = ops.lattice_constants(wf, rr, l0)
+    code = kernels.laplacian_code(lname)
+    csr = cells.build_csr(pos, cells.CellNeighbourList.padded(re, 0.0), box)
+    got = kernels.laplacian(
+        csr.offsets, csr.nbr, pos, cells.box_period(box), phi, code, 1, re,
+        kernels.laplacian_prefactor(code, n0, lam), n0, False, np.empty(len(pos)),
+    )
+    want = ops.get_laplacian(lname).apply(pl, phi, wf, re, n0, lam)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-10 * np.abs(want).max())
+
+
+# --------------------------------------------------------------------------- diffusion
+
+DIFFUSION = [
+    ("xu-jin", "wf2", 3.1, 0.0, False),
+    ("xu-jin", "wf1", 2.1, 0.1, False),
+    ("xu-jin", "wf2", 3.1, 0.1, True),
+    ("koshizuka-oka", "wf1", 4.0, 0.0, False),
+    ("khayyer-gotoh", "wf1", 4.0, 0.0, False),
+    ("khayyer-gotoh", "wf2", 2.5, 0.05, False),
+    ("xu-jin-analytic", "wf1", 3.0, 0.0, False),
+]
+
+
+@pytest.mark.parametrize("lname,wname,rr,amp,gcorr", DIFFUSION)
+def test_diffusion_fields_agree(lname, wname, rr, amp, gcorr):
+    def build() -> Problem:
+        return problems.diffusion_problem(
+            lname, wname, n_side=20, amplitude=amp, value=None, re_ratio=rr,
+            gradient_correction=gcorr,
+        )
+
+    ref, nb = both(build, 60)
+    assert nb.stable_dt() == pytest.approx(ref.stable_dt(), rel=1e-12)
+    phi0 = build().particles.fields["phi"]
+    change = ref.state().fields["phi"] - phi0
+    assert np.abs(change).max() > 1e-3, "the field must actually diffuse"
+    assert rel(nb.state().fields["phi"], ref.state().fields["phi"]) <= 1e-8
+    np.testing.assert_allclose(
+        nb.diagnostics()["number_density"], ref.diagnostics()["number_density"], rtol=1e-12
+    )
+    assert nb.diagnostics()["n0"] == pytest.approx(ref.diagnostics()["n0"], rel=1e-12)
+
+
+# --------------------------------------------------------------------------- Couette
+
+
+@pytest.mark.parametrize("wall_velocity", ["prescribed", "mirror"])
+@pytest.mark.parametrize("lname,wname", [("xu-jin", "wf2"), ("khayyer-gotoh", "wf1")])
+def test_couette_start_up_agrees(wall_velocity, lname, wname):
+    """x-periodic channel, lid moving at U: velocity profiles after 300 viscous steps."""
+    u_lid = 1e-3
+    models = Models(weight=wname, laplacian=lname, re_ratio=3.1)
+
+    def build() -> Problem:
+        return problems.channel_problem(
+            nx=10, ny=12, l0=1e-4, top_velocity=(u_lid, 0.0), models=models, nu=1e-6,
+            c0=10 * u_lid, wall_velocity=wall_velocity,
+        )
+
+    ref, nb = both(build, 300)
+    a, b = ref.state(), nb.state()
+    fluid = a.kind == 0
+    assert np.abs(a.vel[fluid, 0]).max() > 0.05 * u_lid, "momentum must reach the fluid"
+    assert np.abs(a.vel - b.vel).max() <= 1e-8 * u_lid
+    assert np.abs(a.pos - b.pos).max() <= 1e-8 * build().l0
+    assert ref.time == pytest.approx(nb.time, rel=1e-12)
+
+
+# --------------------------------------------------------------------------- dam break
+
+
+@pytest.fixture(scope="module")
+def dam_break_pair():
+    def build() -> Problem:
+        return problems.dam_break_problem(l0=0.008, stabilization=True, collision=True)
+
+    return both(build, 200)
+
+
+def test_dam_break_200_steps_agrees(dam_break_pair):
+    ref, nb = dam_break_pair
+    a, b = ref.state(), nb.state()
+    l0 = 0.008
+    assert ref.time == pytest.approx(nb.time, rel=1e-12)
+    assert np.abs(a.vel).max() > 0.1, "the column must be moving"
+    assert np.abs(a.pos - b.pos).max() <= 1e-6 * l0
+    assert rel(b.vel, a.vel) <= 1e-6
+    assert np.array_equal(ref.free_surface, nb.free_surface)
+    np.testing.assert_allclose(
+        nb.number_density, ref.number_density, rtol=1e-9
+    )
+
+
+FLOWS = {
+    "pgm2-wf1-linear": lambda: problems.column_in_tank_problem(
+        models=Models(weight="wf1", gradient="pgm2", laplacian="koshizuka-oka"), eos="linear",
+        clip_negative_pressure=False,
+    ),
+    "pgm3-stab-no-walls": lambda: problems.column_in_tank_problem(
+        models=Models(gradient="pgm3", laplacian="xu-jin-analytic", gradient_correction=False),
+        stabilization=True, stabilization_walls=False, collision=True,
+    ),
+    "gradient-correction": lambda: problems.column_in_tank_problem(
+        models=Models(laplacian="xu-jin", gradient_correction=True, re_ratio_laplacian=3.1),
+        stabilization=True,
+    ),
+    "periodic": lambda: problems.periodic_flow_problem(velocity=0.05, stabilization=True),
+    "inflow-outflow": lambda: problems.open_channel_problem(stabilization=True, collision=True),
+}
+
+
+@pytest.mark.parametrize("name", sorted(FLOWS))
+def test_other_flows_agree(name):
+    build = FLOWS[name]
+    ref, nb = both(build, 80)
+    a, b = ref.state(), nb.state()
+    assert a.n == b.n and np.array_equal(a.kind, b.kind)
+    assert np.abs(a.pos - b.pos).max() <= 1e-8 * build().l0
+    assert rel(b.vel, a.vel) <= 1e-8
+    if name == "inflow-outflow":
+        assert a.n != build().particles.n, "particles must have entered or left"
+
+
+def test_runner_results_agree():
+    problem = problems.column_in_tank_problem(stabilization=True)
+    ra = run("reference", problem, end_time=0.01)
+    rb = run("numba", problem, end_time=0.01)
+    assert ra.ok and rb.ok, (ra.reason, rb.reason)
+    assert ra.n_steps == rb.n_steps
+    assert rb.final is not None and ra.final is not None
+    assert np.abs(ra.final.pos - rb.final.pos).max() <= 1e-8 * problem.l0
+    assert rb.counters["neighbour_builds"] >= 1
+
+
+# --------------------------------------------------------------------------- threads
+
+
+def test_flow_results_do_not_depend_on_threads():
+    def build() -> Problem:
+        p = problems.dam_break_problem(l0=0.01, stabilization=True)
+        return dataclasses.replace(p, name="threads")
+
+    one = advance(NumbaSolver(threads=1), build(), 30).state()
+    two = advance(NumbaSolver(threads=2), build(), 30).state()
+    assert np.array_equal(one.pos, two.pos) and np.array_equal(one.vel, two.vel)
+
+
+def test_threads_are_chosen_by_size_and_restored():
+    before = numba.get_num_threads()
+    s = NumbaSolver()
+    s.setup(problems.column_in_tank_problem())
+    assert s.threads == 1  # a small problem runs on one thread
+    s.step(s.stable_dt())
+    assert numba.get_num_threads() == before
+    with pytest.raises(ValueError, match="threads"):
+        NumbaSolver(threads=0)
+
+
+# --------------------------------------------------------------------------- conformance
+
+
+@parametrize_solver_checks("numba")
+def test_conformance(solver, check):
+    check(solver)
+
+
+# --------------------------------------------------------------------------- without numba
+
+_BLOCK_NUMBA = textwrap.dedent(
+    """
+    import importlib.abc, sys
+
+    class NoNumba(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path=None, target=None):
+            if name == "numba" or name.startswith("numba."):
+                raise ModuleNotFoundError("No module named 'numba'", name=name)
+            return None
+
+    sys.meta_path.insert(0, NoNumba())
+    sys.argv = ["mpsbench", *sys.argv[1:]]
+    from mpsbench.cli import main
+    raise SystemExit(main())
+    """
+)
+
+
+def _cli_without_numba(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-c", _BLOCK_NUMBA, *args], capture_output=True, text=True, timeout=120
+    )
+
+
+def test_without_numba_the_backend_is_listed_unavailable_with_the_reason():
+    res = _cli_without_numba("solvers", "--json")
+    assert res.returncode == 0, res.stderr
+    import json
+
+    rows = {r["name"]: r for r in json.loads(res.stdout)}
+    assert rows["reference"]["available"] is True
+    assert rows["numba"]["available"] is False
+    assert "pip install 'mpsbench[fast]'" in rows["numba"]["error"]
+    res = _cli_without_numba("check", "numba")
+    assert res.returncode == 2 and "mpsbench[fast]" in res.stderr
