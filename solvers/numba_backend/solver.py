@@ -73,7 +73,7 @@ class NumbaSolver(SolverBase):
         gradients=frozenset(kernels.GRADIENT_CODES),
     )
     skin_ratio = 0.3  # neighbour-list skin in units of l0 (as the reference)
-    parallel_min = 20_000
+    parallel_min = 8_000
     """With ``threads=None``, problems with fewer particles run on one thread: a parallel region
     costs a barrier per kernel (a dozen per step), which small problems do not repay, and on a
     loaded machine (or next to other worker processes) a barrier can wait a whole scheduler
@@ -367,6 +367,14 @@ class NumbaSolver(SolverBase):
 
     def state(self) -> Particles:
         return self.p
+
+    def rebuild_neighbours(self) -> None:
+        """Rebuild the neighbour list now (``mpsbench bench`` times this)."""
+        if self.problem is None or isinstance(self.problem.physics, DiffusionPhysics):
+            return
+        with _threads(self.threads):
+            self.neigh.invalidate()
+            self.neigh.update(self.p.pos)
 
     def diagnostics(self) -> dict[str, Any]:
         return {
