@@ -165,12 +165,14 @@ def save(fig: Any, path: Path) -> Path:
     return path
 
 
-def best_by(df: pd.DataFrame, value: str, group: Sequence[str]) -> pd.DataFrame:
-    """The row with the smallest ``value`` per ``group``."""
-    df = df[df[value].notna()]
-    if df.empty:
-        return df
-    return df.loc[df.groupby(list(group))[value].idxmin()]
+def row_min(df: pd.DataFrame, value: str) -> pd.Series:
+    """The row with the smallest ``value`` (NaN rows ignored)."""
+    return df.iloc[int(np.nanargmin(df[value].to_numpy(float)))]
+
+
+def row_max(df: pd.DataFrame, value: str) -> pd.Series:
+    """The row with the largest ``value`` (NaN rows ignored)."""
+    return df.iloc[int(np.nanargmax(df[value].to_numpy(float)))]
 
 
 # ---------------------------------------------------------------------- plots
@@ -193,7 +195,8 @@ def line_style(weight: str) -> str:
 def plot_vs_re(ax: Any, df: pd.DataFrame, value: str, log: bool = True) -> None:
     """``value`` against r_e/l0: one line per model (colour) and WF (marker, line style)."""
     for (model, weight), g in sorted(df.groupby(["laplacian", "weight"]),
-                                     key=lambda kv: (model_sort_key(kv[0][0]), kv[0][1])):
+                                     key=lambda kv: (model_sort_key(str(kv[0][0])), kv[0][1])):
+        model, weight = str(model), str(weight)
         g = g.sort_values("re_ratio")
         ax.plot(g["re_ratio"], g[value], line_style(weight), marker=marker(weight),
                 color=colour(model), label=f"{model} / {weight}")
@@ -253,10 +256,10 @@ def convergence_figure(
 
 def reference_slope(ax: Any, x: Sequence[float], y0: float, order: float, label: str) -> None:
     """A dotted line of slope ``order`` through (max x, y0 / 2), just below the data."""
-    x = np.asarray(sorted(x), float)
-    if len(x) < 2 or not (y0 > 0):
+    h = np.asarray(sorted(x), float)
+    if len(h) < 2 or not (y0 > 0):
         return
-    ax.loglog(x, 0.5 * y0 * (x / x[-1]) ** order, ":", color="k", lw=1, label=label)
+    ax.loglog(h, 0.5 * y0 * (h / h[-1]) ** order, ":", color="k", lw=1, label=label)
 
 
 def span(values: Any, fmt: Any, sep: str = "-") -> str:

@@ -266,7 +266,7 @@ class CouetteCase(Case):
         problem, rows = self.build(params)
         l0 = problem.l0
         edges = np.concatenate([rows - 0.5 * l0, [rows[-1] + 0.5 * l0]])
-        probe = LayerAverage("u", 1, edges, "u", at=list(TIMES))
+        probe = LayerAverage("u", 1, list(edges), "u", at=list(TIMES))
         result = run(solver, problem, end_time=END_TIME, probes=[probe])
         if not result.ok or len(probe.values) != len(TIMES):
             return result, rows, None
@@ -282,7 +282,7 @@ class CouetteCase(Case):
         p.vel[fluid, 0] = U * p.pos[fluid, 1] / L  # start from the exact steady profile
         l0 = problem.l0
         edges = np.concatenate([rows - 0.5 * l0, [rows[-1] + 0.5 * l0]])
-        probe = LayerAverage("u", 1, edges, "u", at=[STEADY_RUN_TIME])
+        probe = LayerAverage("u", 1, list(edges), "u", at=[STEADY_RUN_TIME])
         result = run(solver, problem, end_time=STEADY_RUN_TIME, probes=[probe])
         if not result.ok or not probe.values:
             return result, None
@@ -316,7 +316,7 @@ class CouetteCase(Case):
                     & (conv["n_fine"] == 40)]
         if conv.empty:
             return CheckResult(name, None, "needs L/20 and L/40 runs of those models")
-        worst = conv.loc[conv["reduction"].idxmin()]
+        worst = cm.row_min(conv, "reduction")
         bad = conv[conv["reduction"] < MIN_REDUCTION]
         detail = (f"{len(conv)} model/WF/radius groups; smallest reduction "
                   f"{worst['reduction']:.2f}x ({worst['model']}, {worst['weight']}, r_e/l0 = "
@@ -402,7 +402,7 @@ class CouetteCase(Case):
                 "interior, so this is the wall treatment's error): " + "; ".join(parts) + ".")
         tt = time_table(df)
         if not tt.empty:
-            worst = tt.loc[tt["time_error_share"].idxmax()]
+            worst = cm.row_max(tt, "time_error_share")
             lines.append(
                 f"- **Time stepping** ({len(tt)} runs with a dt check): halving dt moves the "
                 f"t = {END_TIME:g} s profile by {cm.span(tt['dt_halving_change'], cm.pct)} of "
@@ -530,7 +530,7 @@ def _bound(name: str, sel: pd.DataFrame, upper: float | None = None,
 
 def _summary_line(g: pd.DataFrame, key: str) -> str:
     n = g["n"].iloc[0]
-    best = g.loc[g["l2_error"].idxmin()]
+    best = cm.row_min(g, "l2_error")
     parts = []
     for model in sorted(g["laplacian"].unique(), key=cm.model_sort_key):
         m = g[g["laplacian"] == model]
@@ -538,7 +538,7 @@ def _summary_line(g: pd.DataFrame, key: str) -> str:
     wins = ""
     cells = g.groupby(["weight", "re_ratio"])
     if cells.ngroups > 1 and g["laplacian"].nunique() > 1:
-        winners = pd.Series([c.loc[c["l2_error"].idxmin(), "laplacian"] for _, c in cells])
+        winners = pd.Series([str(cm.row_min(c, "l2_error")["laplacian"]) for _, c in cells])
         wins = "  Smallest error per (WF, r_e/l0) cell: " + ", ".join(
             f"{m} in {k} of {len(winners)}" for m, k in winners.value_counts().items()) + "."
     treatment = key.split("_", 1)[1].replace("_", ", ")
@@ -594,7 +594,7 @@ def _convergence_lines(conv: pd.DataFrame) -> list[str]:
             parts.append(f"{model} {cm.span(r['reduction'], lambda v: f'{v:.2f}x')} "
                          f"(order {cm.span(r['observed_order'], lambda v: f'{v:.2f}', ' to ')})")
         n0, n1 = c["n_coarse"].iloc[0], c["n_fine"].iloc[0]
-        where = wv + ("" if wr == "on-plate" else f", {wr}")
+        where = str(wv) + ("" if wr == "on-plate" else f", {wr}")
         lines.append(f"- **L/{n0} -> L/{n1} ({where} walls)**: error reduction " + "; ".join(parts)
                      + ".")
     return lines

@@ -202,7 +202,7 @@ class DiffusionCase(Case):
         sel = orders[(orders["jitter"] == 0) & orders["model"].isin(ACCURATE_MODELS)]
         if sel.empty:
             return CheckResult(name, None, "needs two or more l0 on the lattice")
-        worst = sel.loc[sel["observed_order"].idxmin()]
+        worst = cm.row_min(sel, "observed_order")
         ok = bool((sel["observed_order"] >= MIN_LATTICE_ORDER).all())
         return CheckResult(name, ok, f"{len(sel)} groups, lowest order "
                            f"{worst['observed_order']:.2f} ({worst['model']}, {worst['weight']}, "
@@ -214,7 +214,7 @@ class DiffusionCase(Case):
         table = time_table(df)
         if table.empty:
             return CheckResult(name, None, "no run with dt_check")
-        worst = table.loc[table["time_error_share"].idxmax()]
+        worst = cm.row_max(table, "time_error_share")
         ok = bool((table["time_error_share"] < MAX_TIME_ERROR_SHARE).all())
         return CheckResult(name, ok, f"{len(table)} groups; worst share "
                            f"{worst['time_error_share']:.2%} ({worst['model']}, "
@@ -249,7 +249,8 @@ class DiffusionCase(Case):
         df = cm.completed(records)
         if df.empty:
             return []
-        out = [_fig_error_vs_re(df, l0, outdir) for l0 in sorted(df["l0"].unique(), reverse=True)]
+        out: list[Path | None] = [
+            _fig_error_vs_re(df, l0, outdir) for l0 in sorted(df["l0"].unique(), reverse=True)]
         out += [_fig_convergence(df, jit, outdir) for jit in sorted(df["jitter"].unique())
                 if df[df["jitter"] == jit]["l0"].nunique() > 1]
         out.append(_fig_decay_ratio(df, outdir))
@@ -320,8 +321,9 @@ def _headline_l0(df: pd.DataFrame) -> float:
 
 def _resolution_groups(df: pd.DataFrame) -> list[tuple[tuple[float, float], pd.DataFrame]]:
     out = []
-    for (l0, jit), group in df.groupby(["l0", "jitter"]):
-        out.append(((float(l0), float(jit)), group))
+    for _, group in df.groupby(["l0", "jitter"]):
+        l0, jit = float(group["l0"].iloc[0]), float(group["jitter"].iloc[0])
+        out.append(((l0, jit), group))
     # jitter first, then coarse to fine
     return sorted(out, key=lambda item: (item[0][1], -item[0][0]))
 
@@ -333,10 +335,10 @@ def _bound_check(name: str, sel: pd.DataFrame, col: str, upper: float | None = N
     vals = sel[col].to_numpy(float)
     if upper is not None:
         bad = sel[vals >= upper]
-        ext = sel.loc[sel[col].idxmax()]
+        ext = cm.row_max(sel, col)
     else:
         bad = sel[vals <= lower]
-        ext = sel.loc[sel[col].idxmin()]
+        ext = cm.row_min(sel, col)
     what = "largest" if upper is not None else "smallest"
     detail = (f"{len(sel)} runs; {what} {ext[col]:.3%} ({ext['laplacian']}, {ext['weight']}, "
               f"r_e/l0 = {ext['re_ratio']:g})")
@@ -376,7 +378,7 @@ def time_table(df: pd.DataFrame) -> pd.DataFrame:
         change = float(checked["dt_halving_change"].max())
         smallest = float(g["l2_error"].min())
         rows.append([*key, float(checked["dt"].max()), change, 2.0 * change, smallest,
-                     float(g.loc[g["l2_error"].idxmin(), "l0"]),
+                     float(cm.row_min(g, "l2_error")["l0"]),
                      2.0 * change / smallest if smallest > 0 else math.inf])
     cols = [*keys, "dt", "dt_halving_change", "time_error", "smallest_l2_error", "at_l0",
             "time_error_share"]
@@ -392,7 +394,7 @@ def _summary_line(group: pd.DataFrame, l0: float, jit: float) -> str:
         err = cm.span(g["l2_error"], cm.pct)
         rate = cm.span(g["decay_ratio"], lambda v: f"{v:.3f}")
         parts.append(f"{model} {err} (decay ratio {rate})")
-    best = group.loc[group["l2_error"].idxmin()]
+    best = cm.row_min(group, "l2_error")
     wins = _wins(group)
     text = (f"- **{where}**: best {best['laplacian']} / {best['weight']} at r_e/l0 = "
             f"{best['re_ratio']:g} ({cm.pct(best['l2_error'], 3)}).  Error range per model: "
@@ -406,7 +408,7 @@ def _wins(group: pd.DataFrame) -> str:
     cells = group.groupby(["weight", "re_ratio"])
     if cells.ngroups < 2 or group["laplacian"].nunique() < 2:
         return ""
-    winners = [g.loc[g["l2_error"].idxmin(), "laplacian"] for _, g in cells]
+    winners = [str(cm.row_min(g, "l2_error")["laplacian"]) for _, g in cells]
     counts = pd.Series(winners).value_counts()
     return ", ".join(f"{m} in {n} of {len(winners)}" for m, n in counts.items())
 
