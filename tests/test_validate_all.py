@@ -199,3 +199,13 @@ def test_single_case_folder_gets_summary_and_index(toys: object, tmp_path: Path)
     for name in ("report.md", "results.json", "summary.md", "index.html", "figures/profile.png"):
         assert (out / name).is_file(), name
     assert 'src="data:image/png;base64,' in (out / "index.html").read_text()
+
+
+def test_cases_with_fewer_longer_runs_are_submitted_first() -> None:
+    from mpsbench.commands.validate import heavy_first
+    from mpsbench.study import Task
+
+    tasks = [Task(case, "reference", "quick", {"i": i}, f"{case}{i}")
+             for case, n in (("many", 3), ("few", 1), ("some", 2)) for i in range(n)]
+    assert [t.run_id for t in heavy_first(tasks)] == ["few0", "some0", "some1", "many0",
+                                                       "many1", "many2"]

@@ -180,8 +180,8 @@ def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
                          for n in names]
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
     folder = {c.name: out / c.name for c in cases}
-    records = run_tasks(tasks, out, jobs=jobs, force=args.force, progress=print_progress(),
-                        task_dir=lambda t: folder[t.case])
+    records = run_tasks(heavy_first(tasks), out, jobs=jobs, force=args.force,
+                        progress=print_progress(), task_dir=lambda t: folder[t.case])
     sections: list[CaseSection] = []
     for name in names:
         if name in broken:
@@ -205,6 +205,16 @@ def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
     print(f"summary: {out / 'summary.md'}")
     print(f"index:   {out / 'index.html'}")
     return 0 if ok else 1
+
+
+def heavy_first(tasks: list[Task]) -> list[Task]:
+    """Submission order: cases with fewer runs first (tiers are sized so each case takes a
+    similar time, so fewer runs means longer ones); the many short runs then fill the workers
+    at the end instead of one long run keeping a worker busy after the others are done."""
+    count: dict[str, int] = {}
+    for t in tasks:
+        count[t.case] = count.get(t.case, 0) + 1
+    return sorted(tasks, key=lambda t: count[t.case])  # stable: a case's own order is kept
 
 
 def print_verdicts(sections: list[CaseSection]) -> None:
