@@ -202,6 +202,18 @@ def test_runner_results_agree():
 # --------------------------------------------------------------------------- threads
 
 
+def test_diffusion_paths_agree():
+    """One thread: each pair once, serial scatter; more threads: full rows in parallel."""
+
+    def build() -> Problem:
+        return problems.diffusion_problem("khayyer-gotoh", "wf1", n_side=16, value=None)
+
+    ref = advance("reference", build(), 40).state().fields["phi"]
+    for threads in (1, 2):
+        got = advance(NumbaSolver(threads=threads), build(), 40).state().fields["phi"]
+        assert rel(got, ref) <= 1e-12
+
+
 def test_flow_results_do_not_depend_on_threads():
     def build() -> Problem:
         p = problems.dam_break_problem(l0=0.01, stabilization=True)
@@ -268,3 +280,30 @@ def test_without_numba_the_backend_is_listed_unavailable_with_the_reason():
     assert "pip install 'mpsbench[fast]'" in rows["numba"]["error"]
     res = _cli_without_numba("check", "numba")
     assert res.returncode == 2 and "mpsbench[fast]" in res.stderr
+
+
+# --------------------------------------------------------------------------- mirror walls
+
+
+@pytest.mark.parametrize("wname", ["wf1", "wf2"])
+def test_mirror_velocities_match_the_reference(wname):
+    from mpsbench.solvers.numba_backend import mirror
+    from mpsbench.solvers.reference.boundaries import mirror_velocity
+
+    from mpsbench.particles import jitter
+
+    problem = problems.channel_problem(nx=12, ny=10, l0=0.01, top_velocity=(0.2, 0.0))
+    p = problem.particles
+    fluid = p.kind == 0
+    rng = np.random.default_rng(4)
+    p.vel[fluid] = rng.normal(size=(int(fluid.sum()), 2))
+    p.vel[p.fields["wall_tag"] == 1] = (0.2, 0.0)
+    moved = p.copy()
+    jitter(moved, 0.2 * problem.l0, 5)
+    moved.pos[~fluid] = p.pos[~fluid]
+    problem.box.wrap(moved.pos)
+    re = 3.1 * problem.l0
+    want = mirror_velocity(moved, get_weight(wname), re, problem.box)
+    got = mirror.mirror_velocity(moved, kernels.weight_code(wname), re, problem.box)
+    assert not np.array_equal(want, moved.vel)
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())

@@ -19,8 +19,8 @@ never enter the neighbour list.
 
 Neighbours: one cell-list CSR list at max(r_e, r_e,lap) + skin, rebuilt when a particle has
 moved more than skin/2, and a sub-list at r_e + skin for the kernels at the smaller radius.
-Inflow and outflow bookkeeping and the ``mirror`` wall velocities (a kernel-weighted linear fit
-at mirror points, O(boundary particles), not hot) reuse the reference backend's numpy code.
+The ``mirror`` wall velocities (a kernel-weighted linear fit at mirror points) are compiled too
+(:mod:`.mirror`); inflow and outflow bookkeeping (not hot) reuse the reference backend's code.
 """
 
 from __future__ import annotations
@@ -40,9 +40,10 @@ from mpsbench.operators import lattice_constants
 from mpsbench.particles import Kind, Particles
 from mpsbench.protocol import Capabilities, Problem, SolverBase
 
-from ..reference.boundaries import InflowBoundary, mirror_velocity, outflow_mask
+from ..reference.boundaries import InflowBoundary, outflow_mask
 from . import kernels, steps
 from .cells import CellNeighbourList, CSRNeighbours, box_period, build_csr
+from .mirror import mirror_velocity
 
 FloatArray = NDArray[np.float64]
 
@@ -181,12 +182,25 @@ class NumbaSolver(SolverBase):
         )
         self._lap_rowsum = float(rows.max()) if self.p.n else 0.0
         self._work = np.empty(self.p.n)
+        self._upper: tuple[Any, Any, Any] | None = None
+        if not self.gcorr and self.threads == 1:
+            # c_ij = c_ji (a function of r_ij only): keep each pair once, serial scatter
+            row = np.repeat(np.arange(self.p.n), np.diff(csr.offsets))
+            up = csr.nbr.astype(np.int64) > row
+            offsets = np.zeros(self.p.n + 1, np.int64)
+            np.cumsum(np.bincount(row[up], minlength=self.p.n), out=offsets[1:])
+            self._upper = (
+                offsets, np.ascontiguousarray(csr.nbr[up]), np.ascontiguousarray(self._coef[up])
+            )
         self.number_density = kernels.number_density(
             csr.offsets, csr.nbr, self.p.pos, self.period, self.wcode, self.re, np.empty(self.p.n)
         )
 
     def _advance_diffusion(self, dt: float, physics: DiffusionPhysics) -> None:
         phi = self.p.fields[physics.field_name]
+        if self._upper is not None:
+            steps.symmetric_step(*self._upper, phi, dt * physics.kappa, self._work)
+            return
         csr = self._diff_csr
         steps.operator_apply(csr.offsets, csr.nbr, self._coef, phi, self._work)
         steps.axpy(phi, dt * physics.kappa, self._work)
@@ -256,7 +270,7 @@ class NumbaSolver(SolverBase):
         big, _ = self._lists()
         u = vel
         if mirror:
-            u = mirror_velocity(self.p, self.weight, self.re, self.box)
+            u = mirror_velocity(self.p, self.wcode, self.re, self.box)
         kernels.laplacian_field(
             *big, self.p.pos, self.period, u, self.lcode, self.wcode, self.re_lap, self.pref,
             self.n0_lap, self.gcorr, self._lap, self._rows, self.p.kind == Kind.FLUID,

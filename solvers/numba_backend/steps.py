@@ -285,3 +285,29 @@ def axpy(phi, factor, work):
     """phi += factor * work (forward Euler with factor = dt kappa)."""
     for i in prange(phi.shape[0]):
         phi[i] += factor * work[i]
+
+
+@njit(cache=True)
+def symmetric_step(offsets, nbr, coef, phi, factor, work):
+    """phi += factor * L phi for a symmetric L held once per pair (serial).
+
+    Row i of (offsets, nbr, coef) lists only the neighbours j > i; each pair term
+    a_ij (phi_j - phi_i) goes to i and, negated, to j.  Half the entries of
+    :func:`operator_apply` stream through memory, which is what a sparse matrix-vector product
+    is limited by (measured 1.5x faster at 6400 particles, r_e = 4 l0).
+    """
+    n = offsets.shape[0] - 1
+    for i in range(n):
+        work[i] = 0.0
+    for i in range(n):
+        phii = phi[i]
+        s = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            d = coef[k] * (phi[j] - phii)
+            s += d
+            work[j] -= d
+        work[i] += s
+    for i in range(n):
+        phi[i] += factor * work[i]
+
