@@ -39,6 +39,8 @@ def label(r: dict[str, Any]) -> str:
         parts.append(str(r.get("gradient")))
     if r.get("stabilization") and r.get("stabilization_walls") is False:
         parts.append("no-wall-stab")
+    if r.get("collision"):
+        parts.append("collision")
     parts.append(f"l0={_num(r.get('l0')) * 1000:g}mm")
     return " ".join(parts)
 
