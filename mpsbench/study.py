@@ -24,7 +24,6 @@ import tempfile
 import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -269,8 +268,9 @@ def run_tasks(
     ``task_dir(task)`` picks the folder of each task's ``runs/`` (default ``outdir`` for all);
     ``mpsbench validate all`` uses it to run every case through one pool and one progress count
     while each case keeps its own folder.  ``executor`` (:mod:`mpsbench.executors`: local
-    processes, a dask cluster) runs the runs instead of the built-in pool (``jobs`` is then
-    ignored).  ``retry(record)`` true re-runs a run whose record exists (e.g. a failed one).
+    processes, a dask cluster) runs the runs; the default is a local one with ``jobs``
+    processes (``jobs`` is ignored when an executor is given).  ``retry(record)`` true
+    re-runs a run whose record exists (e.g. a failed one).
     """
     tasks = list(tasks)
     outdir = Path(outdir)
@@ -294,41 +294,15 @@ def run_tasks(
                 progress(done, len(tasks), rec, True)
         else:
             todo.append(task)
-    if executor is not None:
-        for task, rec in executor.run(todo, lambda t: folder[t.run_id], env):
-            records[task.run_id] = rec
-            done += 1
-            if progress:
-                progress(done, len(tasks), rec, False)
-    elif jobs <= 1 or len(todo) <= 1:
-        for task in todo:
-            rec = execute_task(task, str(folder[task.run_id]), env)
-            records[task.run_id] = rec
-            done += 1
-            if progress:
-                progress(done, len(tasks), rec, False)
-    else:
-        # Each worker runs single-threaded numerics; the pool gives the parallelism.
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            pending: dict[Future[dict[str, Any]], Task] = {
-                pool.submit(execute_task, t, str(folder[t.run_id]), env): t for t in todo
-            }
-            while pending:
-                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for fut in finished:
-                    task = pending.pop(fut)
-                    try:
-                        rec = fut.result()
-                    except Exception as exc:  # noqa: BLE001 - a dead worker fails its run only
-                        rec = _crashed(task, exc, env)
-                        atomic_write_text(
-                            folder[task.run_id] / "runs" / f"{task.run_id}.json",
-                            json.dumps(rec, indent=1),
-                        )
-                    records[task.run_id] = rec
-                    done += 1
-                    if progress:
-                        progress(done, len(tasks), rec, False)
+    if executor is None:
+        from mpsbench.executors import LocalExecutor  # executors imports this module
+
+        executor = LocalExecutor(max(1, jobs))
+    for task, rec in executor.run(todo, lambda t: folder[t.run_id], env):
+        records[task.run_id] = rec
+        done += 1
+        if progress:
+            progress(done, len(tasks), rec, False)
     return [records[t.run_id] for t in tasks]
 
 
