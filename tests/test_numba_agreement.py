@@ -188,6 +188,19 @@ def test_other_flows_agree(name):
         assert a.n != build().particles.n, "particles must have entered or left"
 
 
+@pytest.mark.parametrize("name", ["pgm2-wf1-linear", "pgm3-stab-no-walls", "periodic"])
+def test_half_list_and_row_kernels_agree(name):
+    """The default half-list step (pairs.py) against the row kernels (kernels.py)."""
+    build = FLOWS[name]
+    half = advance(NumbaSolver(pairwise=True), build(), 60)
+    rows = advance(NumbaSolver(pairwise=False), build(), 60)
+    assert half._half and not rows._half
+    a, b = rows.state(), half.state()
+    assert np.abs(a.pos - b.pos).max() <= 1e-10 * build().l0
+    assert rel(b.vel, a.vel) <= 1e-10
+    np.testing.assert_allclose(half.number_density, rows.number_density, rtol=1e-12)
+
+
 def test_runner_results_agree():
     problem = problems.column_in_tank_problem(stabilization=True)
     ra = run("reference", problem, end_time=0.01)

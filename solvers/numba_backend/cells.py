@@ -223,7 +223,9 @@ def _bounds(start, cell, ncell, period, reach, order, bound):
 
 
 @njit(cache=True, parallel=True)
-def _scan(spos, order, start, cell, ncell, period, reach, cut2, group, loose, bstart, buf, counts):
+def _scan(
+    spos, order, start, cell, ncell, period, reach, cut2, group, loose, half, bstart, buf, counts
+):
     """Write the neighbours of every particle into its slice of ``buf`` (one distance pass).
 
     Particle ``order[k]`` owns ``buf[bstart[k]:bstart[k + 1]]``, long enough for every
@@ -231,6 +233,7 @@ def _scan(spos, order, start, cell, ncell, period, reach, cut2, group, loose, bs
     Loops run in cell order, so neighbouring cells are hot in cache; the cells of one stencil
     row are contiguous in that order and are scanned as one span.  Static pairs are skipped:
     both ends in the same rigid ``group`` (>= 0), not both ``loose`` (see :func:`build_csr`).
+    With ``half`` only neighbours j > i are kept.
     """
     hx = half_width(period[0])
     hy = half_width(period[1])
@@ -267,6 +270,8 @@ def _scan(spos, order, start, cell, ncell, period, reach, cut2, group, loose, bs
                         dy = min_image(spos[q, 1] - yi, period[1], hy)
                         j = order[q]
                         inside = (dx * dx + dy * dy <= cut2) & (q != k)
+                        if half:
+                            inside = inside & (j > i)
                         if gi >= 0:
                             inside = inside & ((group[j] != gi) | (li & loose[j]))
                         buf[t] = j
@@ -409,6 +414,7 @@ def build_csr(
     reach: int = 2,
     group: IntArray | None = None,
     loose: NDArray[np.bool_] | None = None,
+    half: bool = False,
 ) -> CSRNeighbours:
     """All neighbours within ``cutoff`` of every particle, as CSR rows.
 
@@ -417,7 +423,8 @@ def build_csr(
     none) puts particles in rigid groups and a pair inside one group is left out unless both
     ends are ``loose`` (the solvers' rule: a dummy particle's pairs with boundary particles
     moving with it are static, a pair of two wall particles is not).  ``static`` is the
-    shorthand group 0 with nothing loose.  ``sort_rows`` orders each row by
+    shorthand group 0 with nothing loose.  ``half``: row i keeps only the neighbours j > i
+    (each pair once, for the kernels of :mod:`.pairs`).  ``sort_rows`` orders each row by
     neighbour index (deterministic layout for comparisons; costs a sort per row).
     ``geometry`` also fills ``dx`` and ``r``.  ``reach``: cells are ``cutoff / reach`` wide and
     the stencil spans +-reach cells (2: 25 cells of cutoff/2 scan ~30% fewer candidates than
@@ -453,8 +460,8 @@ def build_csr(
     buf = np.empty(int(bstart[-1]), np.uint32)
     counts = np.empty(n, np.int64)
     _scan(
-        spos, order, start, cell, ncell, period, reach, float(cutoff) ** 2, grp, lse, bstart, buf,
-        counts,
+        spos, order, start, cell, ncell, period, reach, float(cutoff) ** 2, grp, lse, bool(half),
+        bstart, buf, counts,
     )
     offsets = np.zeros(n + 1, np.int64)
     np.cumsum(counts, out=offsets[1:])
@@ -529,7 +536,8 @@ class CellNeighbourList:
     ``r_small`` (optional, < r_max): also keep :attr:`small`, the entries of the list within
     ``r_small + skin`` at build time; it stays valid for ``r_small`` by the same argument, and
     kernels at the smaller radius (number density, pressure gradient, stabilization at
-    r_e = 2.1 l0 next to a Laplacian at 3.1 l0) scan half as many entries.
+    r_e = 2.1 l0 next to a Laplacian at 3.1 l0) scan half as many entries.  ``half``: half
+    lists (row i holds the neighbours j > i only).
     """
 
     def __init__(
@@ -539,6 +547,7 @@ class CellNeighbourList:
         box: Box | None = None,
         sort_rows: bool = False,
         r_small: float | None = None,
+        half: bool = False,
     ) -> None:
         if not r_max > 0 or not skin >= 0:
             raise ValueError(f"CellNeighbourList: need r_max > 0, skin >= 0; got {r_max}, {skin}")
@@ -547,6 +556,7 @@ class CellNeighbourList:
         self.r_max = float(r_max)
         self.skin = float(skin)
         self.r_small = None if r_small is None else float(r_small)
+        self.half = bool(half)
         self.box = box
         self.period = box_period(box)
         self.sort_rows = sort_rows
@@ -595,7 +605,8 @@ class CellNeighbourList:
         group = self.group if self.group is not None and len(self.group) == len(pos) else None
         loose = self.loose if group is not None else None
         self.csr = build_csr(
-            pos, self.cutoff, self.box, sort_rows=self.sort_rows, group=group, loose=loose
+            pos, self.cutoff, self.box, sort_rows=self.sort_rows, group=group, loose=loose,
+            half=self.half,
         )
         if self.r_small is not None:
             self.small = within(self.csr, pos, self.padded(self.r_small, self.skin))

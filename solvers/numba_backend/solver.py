@@ -41,7 +41,7 @@ from mpsbench.particles import Kind, Particles
 from mpsbench.protocol import Capabilities, Problem, SolverBase
 
 from ..reference.boundaries import InflowBoundary, outflow_mask
-from . import kernels, steps
+from . import kernels, pairs, steps
 from .cells import CellNeighbourList, CSRNeighbours, box_period, build_csr
 from .mirror import mirror_velocity
 
@@ -80,11 +80,14 @@ class NumbaSolver(SolverBase):
     loaded machine (or next to other worker processes) a barrier can wait a whole scheduler
     time slice for a descheduled thread."""
 
-    def __init__(self, threads: int | None = None) -> None:
+    def __init__(self, threads: int | None = None, pairwise: bool = True) -> None:
         super().__init__()
         if threads is not None and (not isinstance(threads, int) or threads < 1):
             raise ValueError(f"NumbaSolver: threads = {threads!r} is not allowed: an integer >= 1")
         self.requested_threads = threads
+        self.pairwise = bool(pairwise)
+        """Flow on half lists (:mod:`.pairs`: each pair evaluated once); False: the row kernels
+        of :mod:`.kernels` on full lists (also used with the xu-jin gradient correction)."""
         self.threads = 1
         self.timings: dict[str, float] = {}
 
@@ -209,18 +212,26 @@ class NumbaSolver(SolverBase):
     def _setup_flow(self, physics: FlowPhysics) -> None:
         r_max = max(self.re, self.re_lap)
         small = self.re if self.re < r_max else None
+        self._half = self.pairwise and not self.gcorr
         self.neigh = CellNeighbourList(
-            r_max, self.skin_ratio * self.l0, self.box, r_small=small
+            r_max, self.skin_ratio * self.l0, self.box, r_small=small, half=self._half
         )
+        self._chunk_build = -1
         self._set_static()
         self._allocate()
         self.neigh.update(self.p.pos)
         self.counters["neighbour_builds"] = self.neigh.builds
-        csr = self.neigh.csr
-        assert csr is not None
-        self.number_density = self.static_n + kernels.number_density(
-            *self._lists()[1], self.p.pos, self.period, self.wcode, self.re, np.empty(self.p.n)
-        )
+        _, small_list = self._lists()
+        if self._half:
+            pairs.density_pairs(
+                *small_list, self.p.pos, self.period, self.wcode, self.re, self._chunks()[1],
+                self._acc_n,
+            )
+            self.number_density = self._acc_n.sum(axis=0) + self.static_n
+        else:
+            self.number_density = self.static_n + kernels.number_density(
+                *small_list, self.p.pos, self.period, self.wcode, self.re, np.empty(self.p.n)
+            )
         self._viscous(self.p.vel, mirror=False)  # the row sums for the first stable_dt()
 
     def _set_static(self) -> None:
@@ -254,6 +265,10 @@ class NumbaSolver(SolverBase):
         self._stab = np.zeros((n, 2))
         self._pmin = np.empty(n)
         self._inner = np.zeros(n, dtype=bool)
+        k = pairs.CHUNKS
+        self._acc_v = np.zeros((k, n, 2))  # per-chunk accumulators of the half-list kernels
+        self._acc_n = np.zeros((k, n))
+        self._acc_rows = np.zeros((k, n))
         if len(self.number_density) != n:
             self.number_density = np.zeros(n)
             self.free_surface = np.zeros(n, dtype=bool)
@@ -265,12 +280,28 @@ class NumbaSolver(SolverBase):
         small = self.neigh.small if self.neigh.small is not None else big
         return (big.offsets, big.nbr), (small.offsets, small.nbr)
 
+    def _chunks(self) -> tuple[Any, Any]:
+        """Chunk bounds of the big and the small half list (recomputed after a rebuild)."""
+        if self._chunk_build != self.neigh.builds:
+            big, small = self._lists()
+            self._bounds = (pairs.chunk_bounds(big[0]), pairs.chunk_bounds(small[0]))
+            self._chunk_build = self.neigh.builds
+        return self._bounds
+
     def _viscous(self, vel: FloatArray, mirror: bool) -> None:
-        """Laplacian of the (mirrored) velocity into ``_lap``; max |c| row sum over fluid."""
+        """Laplacian of the (mirrored) velocity (``_lap`` or ``_acc_v``); max |c| row sum over
+        fluid particles into ``_lap_rowsum``."""
         big, _ = self._lists()
         u = vel
         if mirror:
             u = mirror_velocity(self.p, self.wcode, self.re, self.box)
+        if self._half:
+            pairs.laplacian_pairs(
+                *big, self.p.pos, self.period, u, self.lcode, self.wcode, self.re_lap, self.pref,
+                self._chunks()[0], self._acc_v, self._acc_rows,
+            )
+            self._lap_rowsum = float(pairs.fluid_row_max(self._acc_rows, self.p.kind))
+            return
         kernels.laplacian_field(
             *big, self.p.pos, self.period, u, self.lcode, self.wcode, self.re_lap, self.pref,
             self.n0_lap, self.gcorr, self._lap, self._rows, self.p.kind == Kind.FLUID,
@@ -278,6 +309,73 @@ class NumbaSolver(SolverBase):
         self._lap_rowsum = float(steps.max_over(self._rows, self.p.kind, True))  # fluid rows
 
     def _advance_flow(self, dt: float, ph: FlowPhysics) -> None:
+        if self._half:
+            self._advance_pairs(dt, ph)
+        else:
+            self._advance_rows(dt, ph)
+        if self.box.any_periodic:
+            self.box.wrap(self.p.pos)
+        self._update_open_boundaries(dt)
+
+    def _advance_pairs(self, dt: float, ph: FlowPhysics) -> None:
+        """One WC-MPS step on half lists (same steps as :meth:`_advance_rows`)."""
+        p = self.p
+        kind = p.kind
+        acc = self._acc_v
+        # ---- predictor: viscosity + gravity, then move
+        self.neigh.update(p.pos)
+        if ph.nu > 0:
+            self._viscous(p.vel, mirror=ph.wall_velocity == "mirror")
+        pairs.predictor_from(
+            p.pos, p.vel, acc, ph.nu > 0, ph.nu, ph.gravity[0], ph.gravity[1], dt, kind
+        )
+        if self.box.any_periodic:
+            self.box.wrap(p.pos)
+        # ---- number density at r*, equation of state, free surface
+        self.neigh.update(p.pos)
+        _, small = self._lists()
+        bounds = self._chunks()[1]
+        pairs.density_pairs(*small, p.pos, self.period, self.wcode, self.re, bounds, self._acc_n)
+        tait = ph.eos == "tait"
+        pref = ph.rho0 * ph.c0**2 / ph.gamma if tait else ph.rho0 * ph.c0**2
+        pairs.pressure_from(
+            self._acc_n, self.static_n, kind, self.n0, tait, pref, ph.gamma,
+            ph.clip_negative_pressure, ph.surface_beta, self.number_density, p.pressure,
+            self.free_surface, self._inner,
+        )
+        # ---- corrector: pressure gradient without dummy particles
+        no_dummy = kind != Kind.DUMMY
+        if self.gcode in (1, 2):
+            pairs.pmin_pairs(
+                *small, p.pos, self.period, p.pressure, no_dummy, self.wcode, self.re, bounds,
+                self._acc_n,
+            )
+            pairs._combine_min(self._acc_n, self._pmin)
+        pairs.gradient_pairs(
+            *small, p.pos, self.period, p.pressure, self._pmin, no_dummy, kind, self.gcode,
+            self.wcode, self.re, bounds, acc,
+        )
+        factor = np.array([kernels.DIM / self.n0, -(dt / ph.rho0)])
+        pairs.pressure_increment_from(acc, kind, factor, self._du)
+        if ph.collision:
+            steps.add_into(p.vel, self._du, self._tmp)
+            pairs.collision_pairs(
+                *small, p.pos, self.period, self._tmp, kind, ph.collision_distance * self.l0,
+                ph.restitution, 1.0, bounds, acc,
+            )
+            pairs.add_from(acc, self._du)
+        p.vel += self._du
+        if ph.stabilization:
+            pairs.stabilization_pairs(
+                *small, p.pos, self.period, p.vel, kind, self._inner, ph.stabilization_walls,
+                self.wcode, self.re, bounds, acc,
+            )
+        pairs.corrector_from(
+            p.pos, p.vel, self._du, dt, acc, -ph.alpha_s * self.l0 / self.n0, ph.stabilization
+        )
+
+    def _advance_rows(self, dt: float, ph: FlowPhysics) -> None:
+        """One WC-MPS step with the row kernels on full lists."""
         p = self.p
         kind = p.kind
         # ---- predictor: viscosity + gravity, then move
@@ -324,9 +422,6 @@ class NumbaSolver(SolverBase):
                 self.wcode, self.re, self.n0, self.l0, ph.alpha_s, self._stab,
             )
         steps.corrector(p.pos, p.vel, self._du, dt, self._stab, ph.stabilization)
-        if self.box.any_periodic:
-            self.box.wrap(p.pos)
-        self._update_open_boundaries(dt)
 
     def _update_open_boundaries(self, dt: float) -> None:
         assert self.problem is not None

@@ -1,0 +1,466 @@
+"""Half-list WC-MPS kernels: each pair evaluated once, its terms scattered to both ends.
+
+The row kernels of :mod:`.kernels` visit every pair twice (once from each end), so every square
+root and division is done twice.  These kernels take a *half* list (row ``i`` holds only the
+neighbours ``j > i``, :func:`.cells.build_csr` with ``half=True``) and add each pair's term to
+``i`` and, with the sign its symmetry gives, to ``j``: 1.6x less work for the Laplacian at
+40k particles (measured).
+
+Writes to ``j`` would race between threads, so the rows are cut into ``CHUNKS`` = 2 contiguous
+ranges with about the same number of pairs (:func:`chunk_bounds`), each chunk accumulates into
+its own buffer ``acc[c]``, and the consumer adds the buffers in a fixed order (``acc[0] +
+acc[1]``).  The result does not depend on the number of threads (1 or more: the same chunks,
+the same sums); it scales to two threads, the machines this project targets.  Per-chunk
+buffers are zeroed inside the kernels.
+
+Formulas, masks and the closed support are those of :mod:`.kernels` (and so of
+:mod:`mpsbench.operators` and the reference backend); only the order of the sums differs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from .cells import half_width
+from .kernels import SUPPORT, _coef_in, _dw_in, _inside, _sep, _w_in
+
+CHUNKS = 2
+FLUID = 0  # mpsbench.particles.Kind
+DUMMY = 2
+
+
+def chunk_bounds(offsets: np.ndarray, chunks: int = CHUNKS) -> np.ndarray:
+    """Row bounds (chunks + 1,) splitting a half list into chunks of about equal pair counts."""
+    total = int(offsets[-1])
+    n = len(offsets) - 1
+    bounds = np.empty(chunks + 1, np.int64)
+    bounds[0] = 0
+    bounds[-1] = n
+    for c in range(1, chunks):
+        bounds[c] = min(n, int(np.searchsorted(offsets, c * total / chunks)))
+    return bounds
+
+
+# --------------------------------------------------------------------------- Laplacian
+
+
+@njit(cache=True, parallel=True)
+def laplacian_pairs(offsets, nbr, pos, period, phi, model, wcode, re, pref, bounds, acc, rows):
+    """sum_j c_ij (phi_j - phi_i) of a (n, 2) field into acc (CHUNKS, n, 2); sum_j |c_ij| into
+    rows (CHUNKS, n).  c_ij = c_ji, so j gets -c (phi_j - phi_i) and the same |c|."""
+    px = period[0]
+    py = period[1]
+    hx = half_width(px)
+    hy = half_width(py)
+    inv_re = 1.0 / re
+    re_s = re * SUPPORT
+    for c in prange(bounds.shape[0] - 1):
+        a = acc[c]
+        ra = rows[c]
+        a[:, :] = 0.0
+        ra[:] = 0.0
+        for i in range(bounds[c], bounds[c + 1]):
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            ui = phi[i, 0]
+            vi = phi[i, 1]
+            s0 = 0.0
+            s1 = 0.0
+            sa = 0.0
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                _, _, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
+                r = np.sqrt(r2)
+                cij = _coef_in(model, wcode, r, min(r, re), r2, re, inv_re, pref)
+                cij = cij if _inside(r, r2, re_s) else 0.0
+                d0 = cij * (phi[j, 0] - ui)
+                d1 = cij * (phi[j, 1] - vi)
+                ac = abs(cij)
+                s0 += d0
+                s1 += d1
+                sa += ac
+                a[j, 0] -= d0
+                a[j, 1] -= d1
+                ra[j] += ac
+            a[i, 0] += s0
+            a[i, 1] += s1
+            ra[i] += sa
+
+
+# --------------------------------------------------------------------------- density, EOS
+
+
+@njit(cache=True, parallel=True)
+def density_pairs(offsets, nbr, pos, period, wcode, re, bounds, acc):
+    """sum_j W_ij into acc (CHUNKS, n) (W symmetric: both ends get it)."""
+    px = period[0]
+    py = period[1]
+    hx = half_width(px)
+    hy = half_width(py)
+    inv_re = 1.0 / re
+    re_s = re * SUPPORT
+    for c in prange(bounds.shape[0] - 1):
+        a = acc[c]
+        a[:] = 0.0
+        for i in range(bounds[c], bounds[c + 1]):
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            s = 0.0
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                _, _, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
+                r = np.sqrt(r2)
+                w = _w_in(wcode, min(r, re), re, inv_re)
+                w = w if _inside(r, r2, re_s) else 0.0
+                s += w
+                a[j] += w
+            a[i] += s
+
+
+@njit(cache=True, inline="always")
+def _power(x, gamma, igamma):
+    if igamma == 0:
+        return x**gamma
+    result = 1.0
+    base = x
+    e = igamma
+    while e > 0:
+        if e & 1:
+            result *= base
+        base *= base
+        e >>= 1
+    return result
+
+
+@njit(cache=True, parallel=True)
+def pressure_from(
+    acc, static_n, kind, n0, tait, prefactor, gamma, clip, beta, n_out, p_out, surface, inner
+):
+    """n = acc[0] + acc[1] + static_n, then the equation of state and the free surface
+    (as :func:`.steps.density_pressure`)."""
+    n = n_out.shape[0]
+    chunks = acc.shape[0]
+    threshold = beta * n0
+    igamma = int(gamma) if gamma == np.floor(gamma) and 1.0 <= gamma <= 16.0 else 0
+    for i in prange(n):
+        s = acc[0, i]
+        for c in range(1, chunks):
+            s += acc[c, i]
+        ni = s + static_n[i]
+        n_out[i] = ni
+        ratio = ni / n0
+        if tait:
+            pres = prefactor * (_power(ratio, gamma, igamma) - 1.0)
+        else:
+            pres = prefactor * (ratio - 1.0)
+        if clip and not pres >= 0.0:
+            pres = pres if pres != pres else 0.0
+        k_i = kind[i]
+        carries = k_i != DUMMY
+        fs = carries and ni < threshold
+        surface[i] = fs
+        inner[i] = (k_i == FLUID) and not fs
+        p_out[i] = 0.0 if (fs or not carries) else pres
+
+
+# --------------------------------------------------------------------------- pressure gradient
+
+
+@njit(cache=True, parallel=True)
+def pmin_pairs(offsets, nbr, pos, period, p, mask, wcode, re, bounds, acc):
+    """min of p_j over neighbours with W_ij > 0, both ends masked, into acc (CHUNKS, n)
+    (initialised to p)."""
+    px = period[0]
+    py = period[1]
+    hx = half_width(px)
+    hy = half_width(py)
+    inv_re = 1.0 / re
+    sure_in = re * re * (1.0 - 1e-9)
+    sure_out = re * re * (1.0 + 1e-9)
+    for c in prange(bounds.shape[0] - 1):
+        a = acc[c]
+        a[:] = p
+        for i in range(bounds[c], bounds[c + 1]):
+            if not mask[i]:
+                continue
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            pi = p[i]
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                if not mask[j]:
+                    continue
+                pj = p[j]
+                if pj >= a[i] and pi >= a[j]:  # neither end can lower its minimum
+                    continue
+                _, _, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
+                if r2 == 0.0 or r2 > sure_out:
+                    continue
+                ok = r2 < sure_in
+                if not ok:
+                    r = np.sqrt(r2)
+                    ok = r <= re and _w_in(wcode, r, re, inv_re) > 0.0
+                if ok:
+                    if pj < a[i]:
+                        a[i] = pj
+                    if pi < a[j]:
+                        a[j] = pi
+
+
+@njit(cache=True)
+def _combine_min(acc, out):
+    for i in range(out.shape[0]):
+        m = acc[0, i]
+        for c in range(1, acc.shape[0]):
+            if acc[c, i] < m:
+                m = acc[c, i]
+        out[i] = m
+
+
+@njit(cache=True, parallel=True)
+def gradient_pairs(
+    offsets, nbr, pos, period, p, pmin, mask, kind, model, wcode, re, bounds, acc
+):
+    """sum_j P_ij r_ij W_ij / r_ij^2 (without D/n0) into acc (CHUNKS, n, 2), as
+    :func:`.kernels.pressure_gradient`: pairs with both ends in ``mask``; 1 pgm1
+    P_ij = p_j - pmin_i (j: p_i - pmin_j), 2 pgm2 (p_i + p_j) - (pmin_i + pmin_j), 3 pgm3
+    p_i + p_j.  Pairs with no fluid end are skipped (only fluid rows are used)."""
+    px = period[0]
+    py = period[1]
+    hx = half_width(px)
+    hy = half_width(py)
+    inv_re = 1.0 / re
+    re_s = re * SUPPORT
+    for c in prange(bounds.shape[0] - 1):
+        a = acc[c]
+        a[:, :] = 0.0
+        for i in range(bounds[c], bounds[c + 1]):
+            if not mask[i]:
+                continue
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            pi = p[i]
+            pmi = pmin[i]
+            fi = kind[i] == FLUID
+            gx = 0.0
+            gy = 0.0
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                if not mask[j] or not (fi or kind[j] == FLUID):
+                    continue
+                dx, dy, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
+                r = np.sqrt(r2)
+                q = _w_in(wcode, min(r, re), re, inv_re) / r2
+                q = q if _inside(r, r2, re_s) else 0.0
+                if model == 1:
+                    ci = (p[j] - pmi) * q
+                    cj = (pi - pmin[j]) * q
+                elif model == 2:
+                    ci = ((pi + p[j]) - (pmi + pmin[j])) * q
+                    cj = ci
+                else:
+                    ci = (pi + p[j]) * q
+                    cj = ci
+                gx += ci * dx
+                gy += ci * dy
+                a[j, 0] -= cj * dx
+                a[j, 1] -= cj * dy
+            a[i, 0] += gx
+            a[i, 1] += gy
+
+
+@njit(cache=True, parallel=True)
+def pressure_increment_from(acc, kind, factor, du):
+    """du = factor * (acc[0] + acc[1]) on fluid particles, 0 elsewhere (factor = -dt D / (rho0 n0)
+    is split as in the reference: -(dt / rho0) * ((D / n0) * sum))."""
+    chunks = acc.shape[0]
+    for i in prange(du.shape[0]):
+        if kind[i] == FLUID:
+            gx = acc[0, i, 0]
+            gy = acc[0, i, 1]
+            for c in range(1, chunks):
+                gx += acc[c, i, 0]
+                gy += acc[c, i, 1]
+            du[i, 0] = factor[1] * (factor[0] * gx)
+            du[i, 1] = factor[1] * (factor[0] * gy)
+        else:
+            du[i, 0] = 0.0
+            du[i, 1] = 0.0
+
+
+@njit(cache=True, parallel=True)
+def predictor_from(pos, vel, acc, use_lap, nu, gx, gy, dt, kind):
+    """u* = u + dt (nu lap(u) + g) for fluid (lap = acc[0] + acc[1]); every particle moves
+    by dt u* (as :func:`.steps.predictor`)."""
+    chunks = acc.shape[0]
+    for i in prange(pos.shape[0]):
+        if kind[i] == FLUID:
+            ax = 0.0
+            ay = 0.0
+            if use_lap:
+                lx = acc[0, i, 0]
+                ly = acc[0, i, 1]
+                for c in range(1, chunks):
+                    lx += acc[c, i, 0]
+                    ly += acc[c, i, 1]
+                ax = nu * lx
+                ay = nu * ly
+            vel[i, 0] += dt * (ax + gx)
+            vel[i, 1] += dt * (ay + gy)
+        pos[i, 0] += dt * vel[i, 0]
+        pos[i, 1] += dt * vel[i, 1]
+
+
+@njit(cache=True)
+def fluid_row_max(rows, kind):
+    """max over fluid particles of rows[0] + rows[1] (0.0 without fluid)."""
+    m = 0.0
+    for i in range(rows.shape[1]):
+        if kind[i] != FLUID:
+            continue
+        s = rows[0, i]
+        for c in range(1, rows.shape[0]):
+            s += rows[c, i]
+        if s > m:
+            m = s
+    return m
+
+
+@njit(cache=True, parallel=True)
+def add_from(acc, out):
+    """out += acc[0] + acc[1] for (n, 2) arrays."""
+    chunks = acc.shape[0]
+    for i in prange(out.shape[0]):
+        sx = acc[0, i, 0]
+        sy = acc[0, i, 1]
+        for c in range(1, chunks):
+            sx += acc[c, i, 0]
+            sy += acc[c, i, 1]
+        out[i, 0] += sx
+        out[i, 1] += sy
+
+
+@njit(cache=True, parallel=True)
+def corrector_from(pos, vel, du, dt, acc, factor, use_stab):
+    """r += dt du; u += factor (acc[0] + acc[1]) (the stabilization, factor = -alpha_s l0 / n0)."""
+    chunks = acc.shape[0]
+    for i in prange(pos.shape[0]):
+        pos[i, 0] += dt * du[i, 0]
+        pos[i, 1] += dt * du[i, 1]
+        if use_stab:
+            sx = acc[0, i, 0]
+            sy = acc[0, i, 1]
+            for c in range(1, chunks):
+                sx += acc[c, i, 0]
+                sy += acc[c, i, 1]
+            vel[i, 0] += factor * sx
+            vel[i, 1] += factor * sy
+
+
+# ------------------------------------------------------------------ collision, stabilization
+
+
+@njit(cache=True, parallel=True)
+def collision_pairs(
+    offsets, nbr, pos, period, vel, kind, distance, restitution, wall_share, bounds, acc
+):
+    """Lee et al. (2011) increments (as :func:`.kernels.collision`) into acc (CHUNKS, n, 2);
+    only fluid rows receive."""
+    px = period[0]
+    py = period[1]
+    hx = half_width(px)
+    hy = half_width(py)
+    reject = distance * distance * (1.0 + 1e-9)
+    for c in prange(bounds.shape[0] - 1):
+        a = acc[c]
+        a[:, :] = 0.0
+        for i in range(bounds[c], bounds[c + 1]):
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            fi = kind[i] == FLUID
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                dx, dy, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
+                if r2 > reject or r2 == 0.0 or not np.sqrt(r2) < distance:
+                    continue
+                fj = kind[j] == FLUID
+                if not (fi or fj):
+                    continue
+                approach = (vel[i, 0] - vel[j, 0]) * dx + (vel[i, 1] - vel[j, 1]) * dy
+                if approach > 0.0:
+                    base = (1.0 + restitution) * approach / r2
+                    if fi:
+                        ci = (0.5 if fj else wall_share) * base
+                        a[i, 0] -= ci * dx
+                        a[i, 1] -= ci * dy
+                    if fj:
+                        cj = (0.5 if fi else wall_share) * base
+                        a[j, 0] += cj * dx
+                        a[j, 1] += cj * dy
+
+
+@njit(cache=True, parallel=True)
+def stabilization_pairs(
+    offsets, nbr, pos, period, vel, kind, inner, with_walls, wcode, re, bounds, acc
+):
+    """sum_j W'_ij (u_j - u_i) into acc (CHUNKS, n, 2) for ``inner`` rows (the others get 0);
+    without ``with_walls`` only fluid-fluid pairs count."""
+    px = period[0]
+    py = period[1]
+    hx = half_width(px)
+    hy = half_width(py)
+    inv_re = 1.0 / re
+    re_s = re * SUPPORT
+    for c in prange(bounds.shape[0] - 1):
+        a = acc[c]
+        a[:, :] = 0.0
+        for i in range(bounds[c], bounds[c + 1]):
+            ii = inner[i]
+            if not with_walls and kind[i] != FLUID:
+                continue
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            ui = vel[i, 0]
+            vi = vel[i, 1]
+            s0 = 0.0
+            s1 = 0.0
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                ij = inner[j]
+                if not (ii or ij):
+                    continue
+                if not with_walls and kind[j] != FLUID:
+                    continue
+                _, _, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
+                r = np.sqrt(r2)
+                dw = _dw_in(wcode, min(r, re), re, inv_re)
+                dw = dw if _inside(r, r2, re_s) else 0.0
+                d0 = dw * (vel[j, 0] - ui)
+                d1 = dw * (vel[j, 1] - vi)
+                s0 += d0
+                s1 += d1
+                if ij:
+                    a[j, 0] -= d0
+                    a[j, 1] -= d1
+            if ii:
+                a[i, 0] += s0
+                a[i, 1] += s1
+
+
+__all__ = [
+    "CHUNKS",
+    "add_from",
+    "chunk_bounds",
+    "corrector_from",
+    "fluid_row_max",
+    "predictor_from",
+    "collision_pairs",
+    "density_pairs",
+    "gradient_pairs",
+    "laplacian_pairs",
+    "pmin_pairs",
+    "pressure_from",
+    "pressure_increment_from",
+    "stabilization_pairs",
+]
