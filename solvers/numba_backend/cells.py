@@ -233,7 +233,8 @@ def _scan(
     Loops run in cell order, so neighbouring cells are hot in cache; the cells of one stencil
     row are contiguous in that order and are scanned as one span.  Static pairs are skipped:
     both ends in the same rigid ``group`` (>= 0), not both ``loose`` (see :func:`build_csr`).
-    With ``half`` only neighbours j > i are kept.
+    With ``half`` each pair is kept once, in the row of the end that comes first in cell
+    order (candidates before particle ``order[k]`` in that order are not even looked at).
     """
     hx = half_width(period[0])
     hy = half_width(period[1])
@@ -265,13 +266,14 @@ def _scan(
                     xhi = xb0 if xs == 0 else xb1
                     if xlo > xhi:
                         continue
-                    for q in range(start[row + xlo], start[row + xhi + 1]):
+                    q0 = start[row + xlo]
+                    if half and q0 <= k:
+                        q0 = k + 1  # each pair once: at the end that comes first in cell order
+                    for q in range(q0, start[row + xhi + 1]):
                         dx = min_image(spos[q, 0] - xi, period[0], hx)
                         dy = min_image(spos[q, 1] - yi, period[1], hy)
                         j = order[q]
                         inside = (dx * dx + dy * dy <= cut2) & (q != k)
-                        if half:
-                            inside = inside & (j > i)
                         if gi >= 0:
                             inside = inside & ((group[j] != gi) | (li & loose[j]))
                         buf[t] = j
@@ -423,8 +425,9 @@ def build_csr(
     none) puts particles in rigid groups and a pair inside one group is left out unless both
     ends are ``loose`` (the solvers' rule: a dummy particle's pairs with boundary particles
     moving with it are static, a pair of two wall particles is not).  ``static`` is the
-    shorthand group 0 with nothing loose.  ``half``: row i keeps only the neighbours j > i
-    (each pair once, for the kernels of :mod:`.pairs`).  ``sort_rows`` orders each row by
+    shorthand group 0 with nothing loose.  ``half``: each pair once, in the row of whichever
+    end comes first in cell order (for the kernels of :mod:`.pairs`; half the distance tests).
+    ``sort_rows`` orders each row by
     neighbour index (deterministic layout for comparisons; costs a sort per row).
     ``geometry`` also fills ``dx`` and ``r``.  ``reach``: cells are ``cutoff / reach`` wide and
     the stencil spans +-reach cells (2: 25 cells of cutoff/2 scan ~30% fewer candidates than
@@ -537,7 +540,7 @@ class CellNeighbourList:
     ``r_small + skin`` at build time; it stays valid for ``r_small`` by the same argument, and
     kernels at the smaller radius (number density, pressure gradient, stabilization at
     r_e = 2.1 l0 next to a Laplacian at 3.1 l0) scan half as many entries.  ``half``: half
-    lists (row i holds the neighbours j > i only).
+    lists (each pair once, see :func:`build_csr`).
     """
 
     def __init__(
