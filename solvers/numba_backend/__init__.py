@@ -1,18 +1,27 @@
-"""The numba backend's compute layer: cell-linked neighbour lists and per-particle MPS kernels.
+"""The numba backend (registry name ``numba``): the reference physics, compiled, on cell lists.
 
 Needs numba (the ``fast`` extra).  Without it, importing this package raises ImportError with
 the install command, so the solver registry lists ``numba`` as unavailable with that reason.
 
-* :mod:`.cells`: cell-list builds (CSR rows in both directions, a half pair list equal to
-  :func:`mpsbench.neighbours.build_pairs`), and :class:`.cells.CellNeighbourList` (skin upkeep).
-* :mod:`.kernels`: number density, gradients (original, pgm1-3), divergence, the four Laplacian
-  models (+ xu-jin gradient correction) on scalar and 2-vector fields, the Laplacian row sum
-  for the stable time step, collision and stabilization increments.
-* :mod:`.steps`: the per-particle updates of a WC-MPS step, setup constants, the diffusion
-  operator as per-entry coefficients.
-* :mod:`.solver`: :class:`NumbaSolver`, registry name ``numba``.
-* :mod:`.timing`: ``python -m mpsbench.solvers.numba_backend.timing`` times one pass against
-  the numpy operators.
+* :mod:`.solver`: :class:`NumbaSolver`, the same models, boundary conventions and order of
+  operations as the reference backend (they agree to rounding: tests/test_numba_agreement.py).
+* :mod:`.cells`: cell-list builds (CSR rows in both directions, half lists with each pair once,
+  a half pair list equal to :func:`mpsbench.neighbours.build_pairs`), and
+  :class:`.cells.CellNeighbourList` (skin upkeep, a sub-list at the smaller radius).
+* :mod:`.pairs`: the WC-MPS step on half lists (each pair evaluated once, two per-chunk
+  accumulators so that the result does not depend on the thread count): the solver's default.
+* :mod:`.kernels`: per-particle row kernels on full lists: number density, gradients (original,
+  pgm1-3), divergence, the four Laplacian models (+ xu-jin gradient correction) on scalar and
+  2-vector fields, the Laplacian row sum, collision and stabilization increments.
+* :mod:`.steps`: per-particle updates of a WC-MPS step, setup constants (n0, lambda, static
+  number density), the diffusion operator as per-entry coefficients.
+* :mod:`.mirror`: the ``mirror`` wall velocities (kernel-weighted linear fit at mirror points).
+* :mod:`.timing`: ``python -m mpsbench.solvers.numba_backend.timing`` times one pass of the row
+  kernels against the numpy operators.
+
+Compiled code is cached on disk (``cache=True``, in ``__pycache__`` next to the sources, or
+``NUMBA_CACHE_DIR``): the first process compiles for about 20 s, later ones load in about 0.3 s
+(``mpsbench bench`` reports it as ``jit_compile_s``).
 """
 
 import os
@@ -29,7 +38,7 @@ except ImportError as exc:  # pragma: no cover - exercised only without numba
 # microseconds per kernel on an idle machine.  A value the user set wins.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-from . import cells, kernels, steps
+from . import cells, kernels, mirror, pairs, steps
 from .cells import CellNeighbourList, CSRNeighbours, build_csr, build_pairs_cells
 from .solver import NumbaSolver
 
@@ -41,5 +50,7 @@ __all__ = [
     "build_pairs_cells",
     "cells",
     "kernels",
+    "mirror",
+    "pairs",
     "steps",
 ]
