@@ -248,6 +248,27 @@ def test_threads_are_chosen_by_size_and_restored():
         NumbaSolver(threads=0)
 
 
+def _run_in_worker(n_side: int) -> tuple[int, float]:
+    s = NumbaSolver()
+    s.setup(problems.periodic_flow_problem(n_side=n_side, velocity=0.05, stabilization=True))
+    for _ in range(3):
+        s.step(s.stable_dt())
+    return s.threads, float(np.abs(s.state().vel).max())
+
+
+def test_forked_worker_after_parallel_kernels_in_the_parent():
+    """GNU OpenMP cannot be used in a process forked after the parent used it; pool workers run
+    the serial kernel builds on one thread, so a study pool works after a parallel run."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    parent = advance(NumbaSolver(threads=2), problems.periodic_flow_problem(n_side=40), 2)
+    assert parent.threads == min(2, numba.config.NUMBA_NUM_THREADS)
+    with ProcessPoolExecutor(1, mp_context=mp.get_context("fork")) as pool:
+        threads, vmax = pool.submit(_run_in_worker, 100).result(timeout=300)
+    assert threads == 1 and np.isfinite(vmax) and vmax > 0
+
+
 # --------------------------------------------------------------------------- conformance
 
 

@@ -40,6 +40,8 @@ from mpsbench.kernels import SUPPORT_RTOL
 from mpsbench.neighbours import PairList
 from mpsbench.particles import Box
 
+from ._jit import kernel, pick
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
@@ -222,7 +224,7 @@ def _bounds(start, cell, ncell, period, reach, order, bound):
         bound[k] = m
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def _scan(
     spos, order, start, cell, ncell, period, reach, cut2, group, loose, half, bstart, buf, counts
 ):
@@ -281,7 +283,7 @@ def _scan(
         counts[i] = t - t0
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def _compact(order, bstart, buf, offsets, nbr):
     """Copy each particle's neighbours from its ``buf`` slice to its CSR row (slice copies:
     an element loop is ~7x slower here)."""
@@ -417,6 +419,7 @@ def build_csr(
     group: IntArray | None = None,
     loose: NDArray[np.bool_] | None = None,
     half: bool = False,
+    serial: bool = False,
 ) -> CSRNeighbours:
     """All neighbours within ``cutoff`` of every particle, as CSR rows.
 
@@ -427,7 +430,8 @@ def build_csr(
     moving with it are static, a pair of two wall particles is not).  ``static`` is the
     shorthand group 0 with nothing loose.  ``half``: each pair once, in the row of whichever
     end comes first in cell order (for the kernels of :mod:`.pairs`; half the distance tests).
-    ``sort_rows`` orders each row by
+    ``serial``: the one-thread builds of the kernels (:mod:`._jit`).  ``sort_rows`` orders
+    each row by
     neighbour index (deterministic layout for comparisons; costs a sort per row).
     ``geometry`` also fills ``dx`` and ``r``.  ``reach``: cells are ``cutoff / reach`` wide and
     the stencil spans +-reach cells (2: 25 cells of cutoff/2 scan ~30% fewer candidates than
@@ -462,14 +466,14 @@ def build_csr(
     np.cumsum(bstart[1:], out=bstart[1:])
     buf = np.empty(int(bstart[-1]), np.uint32)
     counts = np.empty(n, np.int64)
-    _scan(
+    pick(_scan, serial)(
         spos, order, start, cell, ncell, period, reach, float(cutoff) ** 2, grp, lse, bool(half),
         bstart, buf, counts,
     )
     offsets = np.zeros(n + 1, np.int64)
     np.cumsum(counts, out=offsets[1:])
     nbr = np.empty(int(offsets[-1]), np.uint32)
-    _compact(order, bstart, buf, offsets, nbr)
+    pick(_compact, serial)(order, bstart, buf, offsets, nbr)
     if sort_rows:
         _sort_rows(offsets, nbr)
     out = CSRNeighbours(offsets, nbr, n, float(cutoff), period, order)
@@ -540,7 +544,7 @@ class CellNeighbourList:
     ``r_small + skin`` at build time; it stays valid for ``r_small`` by the same argument, and
     kernels at the smaller radius (number density, pressure gradient, stabilization at
     r_e = 2.1 l0 next to a Laplacian at 3.1 l0) scan half as many entries.  ``half``: half
-    lists (each pair once, see :func:`build_csr`).
+    lists (each pair once, see :func:`build_csr`).  ``serial``: one-thread kernel builds.
     """
 
     def __init__(
@@ -551,6 +555,7 @@ class CellNeighbourList:
         sort_rows: bool = False,
         r_small: float | None = None,
         half: bool = False,
+        serial: bool = False,
     ) -> None:
         if not r_max > 0 or not skin >= 0:
             raise ValueError(f"CellNeighbourList: need r_max > 0, skin >= 0; got {r_max}, {skin}")
@@ -560,6 +565,7 @@ class CellNeighbourList:
         self.skin = float(skin)
         self.r_small = None if r_small is None else float(r_small)
         self.half = bool(half)
+        self.serial = bool(serial)
         self.box = box
         self.period = box_period(box)
         self.sort_rows = sort_rows
@@ -609,16 +615,18 @@ class CellNeighbourList:
         loose = self.loose if group is not None else None
         self.csr = build_csr(
             pos, self.cutoff, self.box, sort_rows=self.sort_rows, group=group, loose=loose,
-            half=self.half,
+            half=self.half, serial=self.serial,
         )
         if self.r_small is not None:
-            self.small = within(self.csr, pos, self.padded(self.r_small, self.skin))
+            self.small = within(
+                self.csr, pos, self.padded(self.r_small, self.skin), serial=self.serial
+            )
         self._ref = pos.copy()
         self.builds += 1
         return True
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def _count_within(pos, offsets, nbr, period, cut2, counts):
     hx = half_width(period[0])
     hy = half_width(period[1])
@@ -634,7 +642,7 @@ def _count_within(pos, offsets, nbr, period, cut2, counts):
         counts[i] = m
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def _fill_within(pos, offsets, nbr, period, cut2, new_offsets, out):
     hx = half_width(period[0])
     hy = half_width(period[1])
@@ -651,16 +659,18 @@ def _fill_within(pos, offsets, nbr, period, cut2, new_offsets, out):
                 t += 1
 
 
-def within(csr: CSRNeighbours, pos: FloatArray, cutoff: float) -> CSRNeighbours:
+def within(
+    csr: CSRNeighbours, pos: FloatArray, cutoff: float, serial: bool = False
+) -> CSRNeighbours:
     """The sub-list of ``csr`` within ``cutoff`` at ``pos`` (same row order, CSR again)."""
     pos = _as_pos(pos)
     counts = np.empty(csr.n, np.int64)
     cut2 = float(cutoff) ** 2
-    _count_within(pos, csr.offsets, csr.nbr, csr.period, cut2, counts)
+    pick(_count_within, serial)(pos, csr.offsets, csr.nbr, csr.period, cut2, counts)
     offsets = np.zeros(csr.n + 1, np.int64)
     np.cumsum(counts, out=offsets[1:])
     nbr = np.empty(int(offsets[-1]), np.uint32)
-    _fill_within(pos, csr.offsets, csr.nbr, csr.period, cut2, offsets, nbr)
+    pick(_fill_within, serial)(pos, csr.offsets, csr.nbr, csr.period, cut2, offsets, nbr)
     return CSRNeighbours(offsets, nbr, csr.n, float(cutoff), csr.period, csr.order)
 
 

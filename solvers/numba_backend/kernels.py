@@ -45,6 +45,7 @@ from numba import njit, prange
 
 from mpsbench.kernels import SUPPORT_RTOL
 
+from ._jit import kernel
 from .cells import half_width, min_image
 
 DIM = 2.0  # D_s
@@ -188,7 +189,7 @@ def _sep(pos, j, xi, yi, px, py, hx, hy):
     return dx, dy, dx * dx + dy * dy
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def number_density(offsets, nbr, pos, period, wcode, re, out):
     """n_i = sum_j W_ij."""
     n = offsets.shape[0] - 1
@@ -214,7 +215,7 @@ def number_density(offsets, nbr, pos, period, wcode, re, out):
 # --------------------------------------------------------------------------- gradients
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def gradient(offsets, nbr, pos, period, phi, wcode, re, n0, out):
     """Original gradient (Eq. 5): (D/n0) sum_j (phi_j - phi_i) r_ij W_ij / r_ij^2; out (n, 2)."""
     n = offsets.shape[0] - 1
@@ -245,7 +246,7 @@ def gradient(offsets, nbr, pos, period, phi, wcode, re, n0, out):
     return out
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def divergence(offsets, nbr, pos, period, u, wcode, re, n0, out):
     """(D/n0) sum_j (u_j - u_i) . r_ij W_ij / r_ij^2 for a (n, 2) field ``u``."""
     n = offsets.shape[0] - 1
@@ -303,7 +304,7 @@ def _pmin(offsets, nbr, pos, px, py, p, mask, wcode, re, inv_re, i):
     return m
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def neighbour_min(offsets, nbr, pos, period, p, mask, wcode, re, out):
     """p_min,i = min(p_i, min of p_j over neighbours with W_ij > 0 and mask_j); masked i: p_i."""
     n = offsets.shape[0] - 1
@@ -316,7 +317,7 @@ def neighbour_min(offsets, nbr, pos, period, p, mask, wcode, re, out):
     return out
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def pressure_gradient(offsets, nbr, pos, period, p, pmin, mask, model, wcode, re, n0, out, rows):
     """PGM ``model`` (:data:`GRADIENT_CODES`) of the pressure ``p``; out (n, 2).
 
@@ -397,7 +398,7 @@ def pgm3(offsets, nbr, pos, period, p, mask, wcode, re, n0, out):
 # --------------------------------------------------------------------------- Laplacians
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def laplacian_field(
     offsets, nbr, pos, period, phi, model, wcode, re, pref, n0, gcorr, out, rowsum, rows
 ):
@@ -537,7 +538,7 @@ def laplacian_abs_rowsum(offsets, nbr, pos, period, model, wcode, re, pref, out)
 # ---------------------------------------------------------------- collision, stabilization
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def collision(offsets, nbr, pos, period, vel, kind, distance, restitution, wall_share, out):
     """Velocity increments of the Lee et al. (2011) collision model (method.md section 4).
 
@@ -578,7 +579,7 @@ def collision(offsets, nbr, pos, period, vel, kind, distance, restitution, wall_
     return out
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def stabilization(
     offsets, nbr, pos, period, vel, kind, inner, with_walls, wcode, re, n0, l0, alpha_s, out
 ):

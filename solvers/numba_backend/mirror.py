@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from mpsbench.particles import Box, Kind, Particles
 
+from ._jit import kernel, pick
 from .cells import CellNeighbourList, box_period, build_csr, half_width, min_image
 from .kernels import _w_in
 
@@ -78,7 +79,7 @@ def _solve3(m, b0, b1, b2):
     return det, x[0, 0], x[0, 1]
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def mirror_fit(offsets, nbr, pos, period, nf, vel, wcode, re, out):
     """Fluid velocity at each mirror point (rows nf.. of ``pos``) from fluid rows 0..nf-1.
 
@@ -148,7 +149,9 @@ def mirror_fit(offsets, nbr, pos, period, nf, vel, wcode, re, out):
                 out[q, 1] = a1
 
 
-def mirror_velocity(p: Particles, wcode: int, re: float, box: Box) -> FloatArray:
+def mirror_velocity(
+    p: Particles, wcode: int, re: float, box: Box, serial: bool = False
+) -> FloatArray:
     """Boundary velocities extrapolated so the wall velocity holds on the wall line.
 
     Returns a copy of ``p.vel`` with the boundary rows replaced (see the module docstring).
@@ -170,9 +173,9 @@ def mirror_velocity(p: Particles, wcode: int, re: float, box: Box) -> FloatArray
     both = np.ascontiguousarray(np.vstack([p.pos[fluid], mirror]))
     group = np.zeros(len(both), np.int64)
     group[nf:] = 1
-    csr = build_csr(both, CellNeighbourList.padded(re, 0.0), box, group=group)
+    csr = build_csr(both, CellNeighbourList.padded(re, 0.0), box, group=group, serial=serial)
     u_mirror = np.empty((len(bnd), 2))
-    mirror_fit(
+    pick(mirror_fit, serial)(
         csr.offsets, csr.nbr, both, box_period(box), nf, np.ascontiguousarray(p.vel[fluid]),
         wcode, float(re), u_mirror,
     )

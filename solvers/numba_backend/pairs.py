@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from ._jit import kernel
 from .cells import half_width
 from .kernels import SUPPORT, _coef_in, _dw_in, _inside, _sep, _w_in
 
@@ -45,7 +46,7 @@ def chunk_bounds(offsets: np.ndarray, chunks: int = CHUNKS) -> np.ndarray:
 # --------------------------------------------------------------------------- Laplacian
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def laplacian_pairs(offsets, nbr, pos, period, phi, model, wcode, re, pref, bounds, acc, rows):
     """sum_j c_ij (phi_j - phi_i) of a (n, 2) field into acc (CHUNKS, n, 2); sum_j |c_ij| into
     rows (CHUNKS, n).  c_ij = c_ji, so j gets -c (phi_j - phi_i) and the same |c|."""
@@ -91,7 +92,7 @@ def laplacian_pairs(offsets, nbr, pos, period, phi, model, wcode, re, pref, boun
 # --------------------------------------------------------------------------- density, EOS
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def density_pairs(offsets, nbr, pos, period, wcode, re, bounds, acc):
     """sum_j W_ij into acc (CHUNKS, n) (W symmetric: both ends get it)."""
     px = period[0]
@@ -133,7 +134,7 @@ def _power(x, gamma, igamma):
     return result
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def pressure_from(
     acc, static_n, kind, n0, tait, prefactor, gamma, clip, beta, n_out, p_out, surface, inner
 ):
@@ -167,7 +168,7 @@ def pressure_from(
 # --------------------------------------------------------------------------- pressure gradient
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def pmin_pairs(offsets, nbr, pos, period, p, mask, wcode, re, bounds, acc):
     """min of p_j over neighbours with W_ij > 0, both ends masked, into acc (CHUNKS, n)
     (initialised to p)."""
@@ -218,7 +219,7 @@ def _combine_min(acc, out):
         out[i] = m
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def gradient_pairs(
     offsets, nbr, pos, period, p, pmin, mask, kind, model, wcode, re, bounds, acc
 ):
@@ -270,7 +271,7 @@ def gradient_pairs(
             a[i, 1] += gy
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def pressure_increment_from(acc, kind, factor, du):
     """du = factor * (acc[0] + acc[1]) on fluid particles, 0 elsewhere (factor = -dt D / (rho0 n0)
     is split as in the reference: -(dt / rho0) * ((D / n0) * sum))."""
@@ -289,7 +290,7 @@ def pressure_increment_from(acc, kind, factor, du):
             du[i, 1] = 0.0
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def predictor_from(pos, vel, acc, use_lap, nu, gx, gy, dt, kind):
     """u* = u + dt (nu lap(u) + g) for fluid (lap = acc[0] + acc[1]); every particle moves
     by dt u* (as :func:`.steps.predictor`)."""
@@ -327,7 +328,7 @@ def fluid_row_max(rows, kind):
     return m
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def add_from(acc, out):
     """out += acc[0] + acc[1] for (n, 2) arrays."""
     chunks = acc.shape[0]
@@ -341,7 +342,7 @@ def add_from(acc, out):
         out[i, 1] += sy
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def corrector_from(pos, vel, du, dt, acc, factor, use_stab):
     """r += dt du; u += factor (acc[0] + acc[1]) (the stabilization, factor = -alpha_s l0 / n0)."""
     chunks = acc.shape[0]
@@ -361,7 +362,7 @@ def corrector_from(pos, vel, du, dt, acc, factor, use_stab):
 # ------------------------------------------------------------------ collision, stabilization
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def collision_pairs(
     offsets, nbr, pos, period, vel, kind, distance, restitution, wall_share, bounds, acc
 ):
@@ -400,7 +401,7 @@ def collision_pairs(
                         a[j, 1] += cj * dy
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def stabilization_pairs(
     offsets, nbr, pos, period, vel, kind, inner, with_walls, wcode, re, bounds, acc
 ):

@@ -25,6 +25,7 @@ The ``mirror`` wall velocities (a kernel-weighted linear fit at mirror points) a
 
 from __future__ import annotations
 
+import multiprocessing
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -51,7 +52,14 @@ FloatArray = NDArray[np.float64]
 
 @contextmanager
 def _threads(k: int) -> Iterator[None]:
-    """Run the block with ``k`` numba threads, then restore the caller's setting."""
+    """Run the block with ``k`` numba threads, then restore the caller's setting.
+
+    With one thread the serial kernel builds run and the threading layer is left alone (it
+    is not even started: a forked worker process must not touch OpenMP, see :mod:`._jit`).
+    """
+    if k == 1:
+        yield
+        return
     before = numba.get_num_threads()
     if before == k:
         yield
@@ -78,7 +86,8 @@ class NumbaSolver(SolverBase):
     """With ``threads=None``, problems with fewer particles run on one thread: a parallel region
     costs a barrier per kernel (a dozen per step), which small problems do not repay, and on a
     loaded machine (or next to other worker processes) a barrier can wait a whole scheduler
-    time slice for a descheduled thread."""
+    time slice for a descheduled thread.  Inside a worker process of a pool (a study run with
+    ``--jobs`` > 1) every problem runs on one thread: the pool already uses the cores."""
 
     def __init__(self, threads: int | None = None, pairwise: bool = True) -> None:
         super().__init__()
@@ -91,11 +100,17 @@ class NumbaSolver(SolverBase):
         self.threads = 1
         self.timings: dict[str, float] = {}
 
+    def _k(self, fn: Any) -> Any:
+        """The build of a compiled kernel for this run: serial on one thread (:mod:`._jit`)."""
+        return fn.serial if self.threads == 1 else fn
+
     def _choose_threads(self, n: int) -> int:
         available = int(numba.config.NUMBA_NUM_THREADS)  # type: ignore[attr-defined]
         if self.requested_threads is not None:
             return min(self.requested_threads, available)
-        return 1 if n < self.parallel_min else numba.get_num_threads()
+        if n < self.parallel_min or multiprocessing.parent_process() is not None:
+            return 1
+        return numba.get_num_threads()
 
     def setup(self, problem: Problem) -> None:
         self.threads = self._choose_threads(problem.particles.n)
@@ -142,7 +157,9 @@ class NumbaSolver(SolverBase):
 
     def _full_list(self, re: float) -> CSRNeighbours:
         """Every pair within the closed support of ``re`` (no static pairs left out)."""
-        return build_csr(self.p.pos, CellNeighbourList.padded(re, 0.0), self.box)
+        return build_csr(
+            self.p.pos, CellNeighbourList.padded(re, 0.0), self.box, serial=self.threads == 1
+        )
 
     def _reference_constants(self, re: float) -> tuple[float, float]:
         """n0 and lambda: ideal lattice, or the fullest-support particle of the initial state."""
@@ -150,7 +167,7 @@ class NumbaSolver(SolverBase):
         if self.problem.models.n0_from == "lattice":
             return lattice_constants(self.weight, re / self.l0, self.l0)
         csr = self._full_list(re)
-        n = kernels.number_density(
+        n = self._k(kernels.number_density)(
             csr.offsets, csr.nbr, self.p.pos, self.period, self.wcode, re, np.empty(self.p.n)
         )
         cand = self.p.kind == Kind.FLUID
@@ -179,7 +196,7 @@ class NumbaSolver(SolverBase):
         self._diff_csr = csr
         self._coef = np.empty(len(csr.nbr))
         rows = np.empty(self.p.n)
-        steps.operator_entries(
+        self._k(steps.operator_entries)(
             csr.offsets, csr.nbr, self.p.pos, self.period, self.lcode, self.wcode, self.re_lap,
             self.pref, self.n0_lap, self.gcorr, self._coef, rows,
         )
@@ -195,7 +212,7 @@ class NumbaSolver(SolverBase):
             self._upper = (
                 offsets, np.ascontiguousarray(csr.nbr[up]), np.ascontiguousarray(self._coef[up])
             )
-        self.number_density = kernels.number_density(
+        self.number_density = self._k(kernels.number_density)(
             csr.offsets, csr.nbr, self.p.pos, self.period, self.wcode, self.re, np.empty(self.p.n)
         )
 
@@ -205,8 +222,8 @@ class NumbaSolver(SolverBase):
             steps.symmetric_step(*self._upper, phi, dt * physics.kappa, self._work)
             return
         csr = self._diff_csr
-        steps.operator_apply(csr.offsets, csr.nbr, self._coef, phi, self._work)
-        steps.axpy(phi, dt * physics.kappa, self._work)
+        self._k(steps.operator_apply)(csr.offsets, csr.nbr, self._coef, phi, self._work)
+        self._k(steps.axpy)(phi, dt * physics.kappa, self._work)
 
     # ------------------------------------------------------------------ flow
     def _setup_flow(self, physics: FlowPhysics) -> None:
@@ -214,7 +231,8 @@ class NumbaSolver(SolverBase):
         small = self.re if self.re < r_max else None
         self._half = self.pairwise and not self.gcorr
         self.neigh = CellNeighbourList(
-            r_max, self.skin_ratio * self.l0, self.box, r_small=small, half=self._half
+            r_max, self.skin_ratio * self.l0, self.box, r_small=small, half=self._half,
+            serial=self.threads == 1,
         )
         self._chunk_build = -1
         self._set_static()
@@ -223,13 +241,13 @@ class NumbaSolver(SolverBase):
         self.counters["neighbour_builds"] = self.neigh.builds
         _, small_list = self._lists()
         if self._half:
-            pairs.density_pairs(
+            self._k(pairs.density_pairs)(
                 *small_list, self.p.pos, self.period, self.wcode, self.re, self._chunks()[1],
                 self._acc_n,
             )
             self.number_density = self._acc_n.sum(axis=0) + self.static_n
         else:
-            self.number_density = self.static_n + kernels.number_density(
+            self.number_density = self.static_n + self._k(kernels.number_density)(
                 *small_list, self.p.pos, self.period, self.wcode, self.re, np.empty(self.p.n)
             )
         self._viscous(self.p.vel, mirror=False)  # the row sums for the first stable_dt()
@@ -250,7 +268,7 @@ class NumbaSolver(SolverBase):
         self.static_n = np.zeros(p.n)
         if solid.any():
             csr = self._full_list(self.re)
-            steps.static_density(
+            self._k(steps.static_density)(
                 csr.offsets, csr.nbr, p.pos, self.period, self.wcode, self.re, self.group,
                 self.loose, self.static_n,
             )
@@ -294,15 +312,15 @@ class NumbaSolver(SolverBase):
         big, _ = self._lists()
         u = vel
         if mirror:
-            u = mirror_velocity(self.p, self.wcode, self.re, self.box)
+            u = mirror_velocity(self.p, self.wcode, self.re, self.box, self.threads == 1)
         if self._half:
-            pairs.laplacian_pairs(
+            self._k(pairs.laplacian_pairs)(
                 *big, self.p.pos, self.period, u, self.lcode, self.wcode, self.re_lap, self.pref,
                 self._chunks()[0], self._acc_v, self._acc_rows,
             )
             self._lap_rowsum = float(pairs.fluid_row_max(self._acc_rows, self.p.kind))
             return
-        kernels.laplacian_field(
+        self._k(kernels.laplacian_field)(
             *big, self.p.pos, self.period, u, self.lcode, self.wcode, self.re_lap, self.pref,
             self.n0_lap, self.gcorr, self._lap, self._rows, self.p.kind == Kind.FLUID,
         )
@@ -326,7 +344,7 @@ class NumbaSolver(SolverBase):
         self.neigh.update(p.pos)
         if ph.nu > 0:
             self._viscous(p.vel, mirror=ph.wall_velocity == "mirror")
-        pairs.predictor_from(
+        self._k(pairs.predictor_from)(
             p.pos, p.vel, acc, ph.nu > 0, ph.nu, ph.gravity[0], ph.gravity[1], dt, kind
         )
         if self.box.any_periodic:
@@ -335,10 +353,12 @@ class NumbaSolver(SolverBase):
         self.neigh.update(p.pos)
         _, small = self._lists()
         bounds = self._chunks()[1]
-        pairs.density_pairs(*small, p.pos, self.period, self.wcode, self.re, bounds, self._acc_n)
+        self._k(pairs.density_pairs)(
+            *small, p.pos, self.period, self.wcode, self.re, bounds, self._acc_n
+        )
         tait = ph.eos == "tait"
         pref = ph.rho0 * ph.c0**2 / ph.gamma if tait else ph.rho0 * ph.c0**2
-        pairs.pressure_from(
+        self._k(pairs.pressure_from)(
             self._acc_n, self.static_n, kind, self.n0, tait, pref, ph.gamma,
             ph.clip_negative_pressure, ph.surface_beta, self.number_density, p.pressure,
             self.free_surface, self._inner,
@@ -346,31 +366,31 @@ class NumbaSolver(SolverBase):
         # ---- corrector: pressure gradient without dummy particles
         no_dummy = kind != Kind.DUMMY
         if self.gcode in (1, 2):
-            pairs.pmin_pairs(
+            self._k(pairs.pmin_pairs)(
                 *small, p.pos, self.period, p.pressure, no_dummy, self.wcode, self.re, bounds,
                 self._acc_n,
             )
             pairs._combine_min(self._acc_n, self._pmin)
-        pairs.gradient_pairs(
+        self._k(pairs.gradient_pairs)(
             *small, p.pos, self.period, p.pressure, self._pmin, no_dummy, kind, self.gcode,
             self.wcode, self.re, bounds, acc,
         )
         factor = np.array([kernels.DIM / self.n0, -(dt / ph.rho0)])
-        pairs.pressure_increment_from(acc, kind, factor, self._du)
+        self._k(pairs.pressure_increment_from)(acc, kind, factor, self._du)
         if ph.collision:
-            steps.add_into(p.vel, self._du, self._tmp)
-            pairs.collision_pairs(
+            self._k(steps.add_into)(p.vel, self._du, self._tmp)
+            self._k(pairs.collision_pairs)(
                 *small, p.pos, self.period, self._tmp, kind, ph.collision_distance * self.l0,
                 ph.restitution, 1.0, bounds, acc,
             )
-            pairs.add_from(acc, self._du)
+            self._k(pairs.add_from)(acc, self._du)
         p.vel += self._du
         if ph.stabilization:
-            pairs.stabilization_pairs(
+            self._k(pairs.stabilization_pairs)(
                 *small, p.pos, self.period, p.vel, kind, self._inner, ph.stabilization_walls,
                 self.wcode, self.re, bounds, acc,
             )
-        pairs.corrector_from(
+        self._k(pairs.corrector_from)(
             p.pos, p.vel, self._du, dt, acc, -ph.alpha_s * self.l0 / self.n0, ph.stabilization
         )
 
@@ -382,7 +402,7 @@ class NumbaSolver(SolverBase):
         self.neigh.update(p.pos)
         if ph.nu > 0:  # (without viscosity the row sums are not needed either)
             self._viscous(p.vel, mirror=ph.wall_velocity == "mirror")
-        steps.predictor(
+        self._k(steps.predictor)(
             p.pos, p.vel, self._lap, ph.nu > 0, ph.nu, ph.gravity[0], ph.gravity[1], dt, kind
         )
         if self.box.any_periodic:
@@ -392,7 +412,7 @@ class NumbaSolver(SolverBase):
         _, small = self._lists()
         tait = ph.eos == "tait"
         pref = ph.rho0 * ph.c0**2 / ph.gamma if tait else ph.rho0 * ph.c0**2
-        steps.density_pressure(
+        self._k(steps.density_pressure)(
             *small, p.pos, self.period, self.wcode, self.re, self.static_n, kind, self.n0, tait,
             pref, ph.gamma, ph.clip_negative_pressure, ph.surface_beta, self.number_density,
             p.pressure, self.free_surface, self._inner,
@@ -400,28 +420,28 @@ class NumbaSolver(SolverBase):
         # ---- corrector: pressure gradient without dummy particles
         no_dummy = kind != Kind.DUMMY
         if self.gcode == 2:
-            kernels.neighbour_min(
+            self._k(kernels.neighbour_min)(
                 *small, p.pos, self.period, p.pressure, no_dummy, self.wcode, self.re, self._pmin
             )
-        kernels.pressure_gradient(
+        self._k(kernels.pressure_gradient)(
             *small, p.pos, self.period, p.pressure, self._pmin if self.gcode == 2 else p.pressure,
             no_dummy, self.gcode, self.wcode, self.re, self.n0, self._grad, kind == Kind.FLUID,
         )
-        steps.pressure_increment(self._grad, kind, -(dt / ph.rho0), self._du)
+        self._k(steps.pressure_increment)(self._grad, kind, -(dt / ph.rho0), self._du)
         if ph.collision:
-            steps.add_into(p.vel, self._du, self._tmp)
-            kernels.collision(
+            self._k(steps.add_into)(p.vel, self._du, self._tmp)
+            self._k(kernels.collision)(
                 *small, p.pos, self.period, self._tmp, kind, ph.collision_distance * self.l0,
                 ph.restitution, 1.0, self._stab,
             )
             self._du += self._stab
         p.vel += self._du
         if ph.stabilization:
-            kernels.stabilization(
+            self._k(kernels.stabilization)(
                 *small, p.pos, self.period, p.vel, kind, self._inner, ph.stabilization_walls,
                 self.wcode, self.re, self.n0, self.l0, ph.alpha_s, self._stab,
             )
-        steps.corrector(p.pos, p.vel, self._du, dt, self._stab, ph.stabilization)
+        self._k(steps.corrector)(p.pos, p.vel, self._du, dt, self._stab, ph.stabilization)
 
     def _update_open_boundaries(self, dt: float) -> None:
         assert self.problem is not None

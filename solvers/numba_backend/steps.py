@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from ._jit import kernel
 from .cells import half_width
 from .kernels import DIM, SUPPORT, _coef_in, _inside, _sep, _w_in
 
@@ -48,7 +49,7 @@ def row_constants(offsets, nbr, pos, period, wcode, re, i):
     return s, s2
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def static_density(offsets, nbr, pos, period, wcode, re, group, loose, out):
     """sum_j W_ij over the static pairs of each particle (same rigid group, not both loose)."""
     n = offsets.shape[0] - 1
@@ -99,7 +100,7 @@ def _power(x, gamma, igamma):
     return result
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def density_pressure(
     offsets, nbr, pos, period, wcode, re, static_n, kind, n0, tait, prefactor, gamma, clip,
     beta, n_out, p_out, surface, inner,
@@ -148,7 +149,7 @@ def density_pressure(
     return n_out
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def predictor(pos, vel, lap, use_lap, nu, gx, gy, dt, kind):
     """u* = u + dt (nu lap(u) + g) for fluid particles; every particle moves by dt u*."""
     n = pos.shape[0]
@@ -162,7 +163,7 @@ def predictor(pos, vel, lap, use_lap, nu, gx, gy, dt, kind):
         pos[i, 1] += dt * vel[i, 1]
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def pressure_increment(grad, kind, factor, du):
     """du = factor * grad on fluid particles (factor = -dt / rho0), 0 elsewhere."""
     for i in prange(grad.shape[0]):
@@ -174,7 +175,7 @@ def pressure_increment(grad, kind, factor, du):
             du[i, 1] = 0.0
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def add_into(a, b, out):
     """out = a + b for (n, 2) arrays."""
     for i in prange(a.shape[0]):
@@ -182,7 +183,7 @@ def add_into(a, b, out):
         out[i, 1] = a[i, 1] + b[i, 1]
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def corrector(pos, vel, du, dt, stab, use_stab):
     """r += dt du; u += stab (the velocity update u += du is done before the stabilization)."""
     for i in prange(pos.shape[0]):
@@ -221,7 +222,7 @@ def max_speed(vel):
 # --------------------------------------------------------------------------- diffusion
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def operator_entries(
     offsets, nbr, pos, period, model, wcode, re, pref, n0, gcorr, coef, rowsum
 ):
@@ -268,7 +269,7 @@ def operator_entries(
         rowsum[i] = sa + abs(sd)
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def operator_apply(offsets, nbr, coef, phi, out):
     """out_i = sum_j a_ij (phi_j - phi_i): the Laplacian from :func:`operator_entries`."""
     for i in prange(offsets.shape[0] - 1):
@@ -280,7 +281,7 @@ def operator_apply(offsets, nbr, coef, phi, out):
     return out
 
 
-@njit(cache=True, parallel=True)
+@kernel
 def axpy(phi, factor, work):
     """phi += factor * work (forward Euler with factor = dt kappa)."""
     for i in prange(phi.shape[0]):
