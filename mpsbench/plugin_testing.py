@@ -29,7 +29,7 @@ from typing import Any
 
 from mpsbench.cases import CASES, Case, CheckResult, get_case
 from mpsbench.protocol import SOLVERS, get_solver_class
-from mpsbench.study import Task, run_id, run_tasks
+from mpsbench.study import Task, run_ids, run_tasks
 
 
 @dataclass
@@ -94,8 +94,9 @@ def run_case(
         if not (isinstance(case, str) and isinstance(solver, str)):
             jobs = 1  # a temporary registration lives in this process only
         sets = case_obj.expand(tier, overrides)
-        tasks = [Task(case_obj.name, solver_name, tier, p, run_id(case_obj.name, solver_name, p))
-                 for p in sets]
+        ids = run_ids(case_obj.name, solver_name, sets, case_obj.defaults())
+        tasks = [Task(case_obj.name, solver_name, tier, p, rid)
+                 for p, rid in zip(sets, ids, strict=True)]
         with _folder(out) as folder:
             records = run_tasks(tasks, folder, jobs=jobs, force=force)
             if report:

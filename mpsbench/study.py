@@ -43,15 +43,43 @@ COMMON_COLUMNS = (
 )
 
 
-def run_id(case: str, solver: str, params: dict[str, Any]) -> str:
-    """A readable, filesystem-safe name built from the parameters (plus a short hash)."""
-    parts = [case, solver] + [f"{k}={_short(v)}" for k, v in sorted(params.items())]
+def run_id(
+    case: str,
+    solver: str,
+    params: dict[str, Any],
+    defaults: dict[str, Any] | None = None,
+    always: Iterable[str] = (),
+) -> str:
+    """A readable, filesystem-safe name built from the parameters (plus a short hash).
+
+    With the case's ``defaults`` (in the case's parameter order) the readable part lists the
+    parameters that differ from them or are named in ``always`` (those a study sweeps), in that
+    order, so names stay short and say what the run varies; the hash covers every parameter.
+    """
+    if defaults is not None:
+        keep = set(always)
+        order = [k for k in defaults if k in params] + sorted(set(params) - set(defaults))
+        shown = [k for k in order if k in keep or k not in defaults or params[k] != defaults[k]]
+    else:
+        shown = sorted(params)
+    parts = [case, solver] + [f"{k}={_short(params[k])}" for k in shown]
     text = "_".join(parts)
     digest = hashlib.sha1(json.dumps([case, solver, sorted(params.items())], default=str).encode())
     safe = re.sub(r"[^A-Za-z0-9=.+-]+", "_", text)
     if len(safe) > 150:
         safe = safe[:150]
     return f"{safe}_{digest.hexdigest()[:8]}"
+
+
+def run_ids(
+    case: str, solver: str, param_sets: Sequence[dict[str, Any]], defaults: dict[str, Any]
+) -> list[str]:
+    """Run ids of a set of runs: every parameter the set sweeps is named in each id."""
+    swept = {
+        k for k in {k for p in param_sets for k in p}
+        if len({repr(p.get(k)) for p in param_sets}) > 1
+    }
+    return [run_id(case, solver, p, defaults, swept) for p in param_sets]
 
 
 def _short(v: Any) -> str:
@@ -73,9 +101,10 @@ def plan(
     case: Case, solvers: Sequence[str], tier: str, overrides: dict[str, Sequence[Any]] | None = None
 ) -> list[Task]:
     tasks = []
+    sets = case.expand(tier, overrides)
     for solver in solvers:
-        for params in case.expand(tier, overrides):
-            tasks.append(Task(case.name, solver, tier, params, run_id(case.name, solver, params)))
+        ids = run_ids(case.name, solver, sets, case.defaults())
+        tasks += [Task(case.name, solver, tier, p, rid) for p, rid in zip(sets, ids, strict=True)]
     return tasks
 
 

@@ -44,7 +44,7 @@ from mpsbench.cases import CASES, TIERS, Case, CheckResult, Param
 from mpsbench.config import ConfigError
 from mpsbench.executors import EXECUTORS
 from mpsbench.registry import PluginLoadError, UnknownNameError
-from mpsbench.study import Task, run_id
+from mpsbench.study import Task, run_ids
 
 DEFAULT_OUT = Path("reports") / "studies"
 """Studies write to ``reports/studies/<name>`` unless the file or ``--out`` says otherwise."""
@@ -145,8 +145,8 @@ class StudySpec:
         for case in self.case_objects():
             sets = self.param_sets(case)
             for solver in self.solvers:
-                for params in sets:
-                    rid = run_id(case.name, solver, params)
+                ids = run_ids(case.name, solver, sets, case.defaults())
+                for params, rid in zip(sets, ids, strict=True):
                     if rid not in seen:
                         seen.add(rid)
                         out.append(Task(case.name, solver, self.tier, params, rid))
