@@ -287,6 +287,13 @@ class ReferenceSolver(SolverBase):
     def state(self) -> Particles:
         return self.p
 
+    def rebuild_neighbours(self) -> None:
+        """Rebuild the neighbour list now (``mpsbench bench`` times this)."""
+        if self.problem is None or isinstance(self.problem.physics, DiffusionPhysics):
+            return
+        self.neigh.invalidate()
+        self.neigh.get(self.p, self.weight, self.re)
+
     def diagnostics(self) -> dict[str, Any]:
         return {
             "number_density": self.number_density,
