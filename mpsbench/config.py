@@ -168,11 +168,12 @@ class FlowPhysics:
 
 @dataclass(frozen=True)
 class TimeStepping:
-    """dt = min(cfl l0 / (c0 + |u|max), c_nu / (nu * rho(L))) unless ``dt`` is fixed.
+    """dt = min(cfl l0 / (c0 + |u|max), c_nu 2 / (nu rho(L))) unless ``dt`` is fixed.
 
-    For flow, the viscous limit uses the Laplacian's largest eigenvalue estimate
-    rho(L) = max_i sum_j |c_ij| (method.md section 4), for diffusion kappa * rho(L).
-    ``c_nu`` is the fraction of the forward-Euler limit 2 / rho(L) used.
+    rho(L) is the Gershgorin bound of the Laplacian's spectral radius, 2 max_i sum_j |c_ij|
+    (method.md section 4: derive the viscous limit from the model, not a fixed constant); for
+    diffusion the limit is c_nu 2 / (kappa rho(L)).  ``c_nu`` is the fraction of the
+    forward-Euler limit 2 / rho(L) used.  :meth:`stable_dt` is the rule every backend applies.
     """
 
     dt: float | None = None
@@ -184,6 +185,23 @@ class TimeStepping:
             _positive("TimeStepping", "dt", self.dt)
         _in_range("TimeStepping", "cfl", self.cfl, 1e-6, 1.0)
         _in_range("TimeStepping", "c_nu", self.c_nu, 1e-6, 1.0)
+
+    def stable_dt(
+        self, physics: DiffusionPhysics | FlowPhysics, l0: float, umax: float, rho_lap: float
+    ) -> float:
+        """The time step [s] for the current state.
+
+        ``umax``: largest particle speed [m/s]; ``rho_lap``: the Gershgorin bound of the
+        Laplacian's spectral radius [1/m^2] (0 when unknown: no viscous limit).
+        """
+        if self.dt is not None:
+            return self.dt
+        if isinstance(physics, DiffusionPhysics):
+            return self.c_nu * 2.0 / (physics.kappa * rho_lap) if rho_lap > 0 else math.inf
+        dt = self.cfl * l0 / (physics.c0 + umax)
+        if physics.nu > 0 and rho_lap > 0:
+            dt = min(dt, self.c_nu * 2.0 / (physics.nu * rho_lap))
+        return float(dt)
 
 
 @dataclass(frozen=True)

@@ -481,18 +481,12 @@ class NumbaSolver(SolverBase):
 
     def stable_dt(self) -> float:
         assert self.problem is not None
-        ts = self.problem.time_stepping
-        if ts.dt is not None:
-            return ts.dt
         ph = self.problem.physics
         if isinstance(ph, DiffusionPhysics):
-            rho = self._lap_rowsum
-            return ts.c_nu * 2.0 / (ph.kappa * rho) if rho > 0 else np.inf
+            # the diffusion row sums include the diagonal: 2 sum_j |c_ij|, as in the reference
+            return self.problem.time_stepping.stable_dt(ph, self.l0, 0.0, self._lap_rowsum)
         umax = float(steps.max_speed(self.p.vel)) if self.p.n else 0.0
-        dt = ts.cfl * self.l0 / (ph.c0 + umax)
-        if ph.nu > 0 and self._lap_rowsum > 0:
-            dt = min(dt, ts.c_nu * 2.0 / (ph.nu * 2.0 * self._lap_rowsum))
-        return float(dt)
+        return self.problem.time_stepping.stable_dt(ph, self.l0, umax, 2.0 * self._lap_rowsum)
 
     def state(self) -> Particles:
         return self.p
