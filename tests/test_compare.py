@@ -242,3 +242,14 @@ def test_unknown_case_matches_by_run_id(baseline: Path, tmp_path: Path) -> None:
     assert run_compare(str(a), str(a)) == 0
     assert run_compare(str(a), str(b)) == 1
     shutil.rmtree(a)
+
+
+@pytest.mark.parametrize("name", ["diffusion", "couette", "water-jet", "dam-break"])
+def test_declared_rules_of_the_builtin_cases_are_valid(name: str) -> None:
+    """Each declared rule names a metric the case records and is a rule compare accepts."""
+    from mpsbench.cases import get_case
+
+    case = get_case(name)
+    for metric in case.compare:
+        assert metric in case.metrics, f"{name}: compare rule for unknown metric {metric!r}"
+        metric_rule(case, metric)  # raises CompareError on a bad rule

@@ -17,9 +17,11 @@ from mpsbench.validations._jet_metrics import (
     free_streamline_x,
     interior_fluid,
     penetrations,
+    plate_force_ratio,
     pressure_deviation,
     stabilization_viscosity,
     surface_centroid,
+    tait_cp,
     temporal_noise,
 )
 from scipy.integrate import quad
@@ -155,6 +157,48 @@ def test_density_drift_of_a_compressed_lattice() -> None:
     assert fm.drift_max == pytest.approx(expected, rel=1e-9)
 
 
+def test_near_wall_measures_the_rows_above_the_plate() -> None:
+    """Fluid with |x| <= x_max and y < y_max: its pressure and its mean n/n0 - 1."""
+    n0 = lattice_constants("wf2", RE, 1.0)[0]
+    squeezed = block(-10.0, 0.0, 20, 20, 0.98)  # rows at y = 0.49, 1.47, 2.45, ...
+    q = 500.0
+    squeezed.pressure[:] = 0.5 * q + 10.0 * squeezed.pos[:, 1]  # rises with y
+    fm = frame_measures(squeezed.pos, squeezed.pressure, squeezed.kind, l0=1.0, weight="wf2",
+                        re=RE, n0=n0, q=q, beta=0.97, near_wall=(4.0, 2.5))
+    inside = (np.abs(squeezed.pos[:, 0]) <= 4.0) & (squeezed.pos[:, 1] < 2.5)
+    assert fm.wall_count == inside.sum() == 3 * 8  # three rows, x = +-0.49 .. +-3.43
+    assert fm.wall_cp_sum / fm.wall_count == pytest.approx(
+        0.5 + 10.0 * squeezed.pos[inside, 1].mean() / q, rel=1e-12)
+    # the top row of the three has full support (compressed by 2 %: n/n0 - 1 = full); the two
+    # below miss the rows under y = 0, so the mean lies between the open-edge value and full
+    full = lattice_constants("wf2", RE / 0.98, 0.98)[0] / n0 - 1.0
+    mean_dn = fm.wall_dn_sum / fm.wall_count
+    assert full > 0.05 and -0.5 < mean_dn < full
+    none = frame_measures(squeezed.pos, squeezed.pressure, squeezed.kind, l0=1.0, weight="wf2",
+                          re=RE, n0=n0, q=q, beta=0.97)
+    assert none.wall_count == 0 and none.wall_cp_sum == 0.0
+
+
+def test_tait_cp_is_the_linearised_compression_for_small_strain() -> None:
+    c0 = 10.0
+    assert tait_cp(0.0, c0) == 0.0
+    # p = rho c0^2 dn (1 + 3 dn + ...) for gamma = 7: Cp = 2 (c0/U)^2 dn to O(dn^2)
+    assert tait_cp(1e-4, c0) == pytest.approx(2 * c0**2 * 1e-4, rel=4e-4)
+    assert tait_cp(-5e-3, c0) < 0.0  # not clipped
+    assert tait_cp(5e-3, c0) == pytest.approx(200.0 / 7.0 * (1.005**7 - 1.0), rel=1e-12)
+
+
+def test_plate_force_ratio_measures_the_integral_not_the_shape() -> None:
+    xb = np.arange(26) * 0.1
+    exact = free_streamline_cp(xb)
+    assert plate_force_ratio(xb, exact) == pytest.approx(1.0, abs=2e-3)  # trapezoid on 0.1 b
+    assert plate_force_ratio(xb, 1.2 * exact) == pytest.approx(1.2, abs=3e-3)
+    # a profile twice as wide and half as high carries the same force over a long plate
+    xl = np.linspace(0.0, 40.0, 4001)
+    wide = 0.5 * free_streamline_cp(xl / 2.0)
+    assert plate_force_ratio(xl, wide) == pytest.approx(1.0, abs=1e-3)
+
+
 def test_interior_is_one_support_away_from_the_surface() -> None:
     p = _lattice(12)
     surface = surface_centroid(p.pos, p.fluid, RE, 1.0)
@@ -245,12 +289,20 @@ def test_case_declares_the_study_grid_and_the_record_columns() -> None:
     assert set(REQUIRED_METRICS) <= set(case.metrics)
     assert set(case.tiers) == {"smoke", "quick", "paper"}
     paper = case.expand("paper")
-    assert len(paper) == 2 * 3 * 4 * 2 * 2
+    # the full grid, plus b/40 off/on and alpha_s {0.0025, 0.005} x wall neighbours at b/20
+    assert len(paper) == 2 * 3 * 4 * 2 * 2 + 2 + 4
     quick = case.expand("quick")
     acceptance = [r for r in quick if r["stabilization"] and r["gradient"] == "pgm1"
                   and r["weight"] == "wf2" and r["b"] / r["l0"] == pytest.approx(20.0)
-                  and r["collision_distance"] == 0.0 and r["stabilization_walls"]]
+                  and r["collision_distance"] == 0.0 and r["stabilization_walls"]
+                  and r["alpha_s"] == 0.01]
     assert len(acceptance) == 1
+    # the acceptance model's trend: b/10, b/20, b/40 and alpha_s 0.0025, 0.005, 0.01 at b/20
+    trend = [r for r in quick if r["stabilization"] and r["gradient"] == "pgm1"
+             and r["collision_distance"] == 0.0 and r["stabilization_walls"]]
+    assert {round(r["b"] / r["l0"]) for r in trend if r["alpha_s"] == 0.01} == {10, 20, 40}
+    assert {r["alpha_s"] for r in trend if round(r["b"] / r["l0"]) == 20} == {
+        0.0025, 0.005, 0.01}
     assert {r["gradient"] for r in quick} == {"pgm1", "pgm2", "pgm3"}
     assert {r["collision_distance"] for r in quick} == {0.0, 0.5, 0.7, 0.9}
 

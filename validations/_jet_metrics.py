@@ -132,6 +132,10 @@ class FrameMeasures:
     nn_sum: float = 0.0  # sum over fluid particles of the nearest-neighbour distance / l0
     nn_close: int = 0  # how many of them have a neighbour closer than the collision distance
     nn_count: int = 0
+    # fluid next to the plate (see ``near_wall`` of :func:`frame_measures`)
+    wall_dn_sum: float = 0.0  # sum of n_i/n0 - 1
+    wall_cp_sum: float = 0.0  # sum of p_i / q (the solver's pressure, clipped at 0)
+    wall_count: int = 0
 
 
 def frame_measures(
@@ -147,6 +151,7 @@ def frame_measures(
     beta: float,
     region: tuple[float, float] | None = None,
     close_distance: float = 0.0,
+    near_wall: tuple[float, float] | None = None,
 ) -> FrameMeasures:
     """Spatial pressure noise and number-density drift of one state.
 
@@ -156,6 +161,9 @@ def frame_measures(
     over interior fluid particles (:func:`interior_fluid`) inside ``region``.  Spacing: the
     nearest-neighbour distance (any kind) of every fluid particle inside ``region``, in l0, and
     how many are closer than ``close_distance`` l0 (where a collision model can act).
+    Near wall: number density and pressure of the fluid particles with |x| <= ``near_wall[0]``
+    and y < ``near_wall[1]`` (the rows just above a plate whose wall line is y = 0), so a caller
+    can compare the pressure they carry with the one their mean compression implies.
     """
     fluid = kind == Kind.FLUID
     carries = fluid | (kind == Kind.WALL) | (kind == Kind.INFLOW)
@@ -172,7 +180,13 @@ def frame_measures(
     nn = np.zeros(0)
     if probe.any() and len(pos) > 1:
         nn = cKDTree(pos).query(pos[probe], k=2)[0][:, 1] / l0
+    wall_zone = np.zeros(len(pos), dtype=bool)
+    if near_wall is not None:
+        wall_zone = fluid & (np.abs(pos[:, 0]) <= near_wall[0]) & (pos[:, 1] < near_wall[1])
     return FrameMeasures(
+        wall_dn_sum=float(np.sum(n[wall_zone] / n0 - 1.0)),
+        wall_cp_sum=float(np.sum(pressure[wall_zone]) / q),
+        wall_count=int(wall_zone.sum()),
         noise_sq_sum=float(np.sum(noise**2)),
         noise_count=int(sel.sum()),
         drift_sum=float(drift.sum()),
@@ -189,7 +203,10 @@ def pooled(frames: list[FrameMeasures]) -> dict[str, float]:
     nc = sum(f.noise_count for f in frames)
     dc = sum(f.drift_count for f in frames)
     kc = sum(f.nn_count for f in frames)
+    wc = sum(f.wall_count for f in frames)
     return {
+        "near_wall_cp": sum(f.wall_cp_sum for f in frames) / wc if wc else np.nan,
+        "near_wall_dn": sum(f.wall_dn_sum for f in frames) / wc if wc else np.nan,
         "noise_spatial": float(np.sqrt(sum(f.noise_sq_sum for f in frames) / nc)) if nc else np.nan,
         "density_drift_mean": sum(f.drift_sum for f in frames) / dc if dc else np.nan,
         "density_drift_max": max((f.drift_max for f in frames), default=np.nan),
@@ -221,6 +238,23 @@ def stabilization_viscosity(weight: str, re_ratio: float, l0: float, alpha_s: fl
     n0 = float(wf.w(r, re).sum())
     moment = float(np.sum(np.abs(wf.dw(r, re)) * r**2))
     return alpha_s * l0 * moment / (4.0 * n0 * dt)
+
+
+def tait_cp(dn: float, c0_over_u: float, gamma: float = 7.0) -> float:
+    """Cp = p / (rho U^2 / 2) of the Tait equation at n/n0 = 1 + dn, not clipped."""
+    return float(2.0 * c0_over_u**2 / gamma * ((1.0 + dn) ** gamma - 1.0))
+
+
+def plate_force_ratio(xb: FloatArray, cp: FloatArray) -> float:
+    """Integral of a plate Cp profile over 0 <= x/b <= xb[-1] against the free-streamline one.
+
+    In a steady jet the plate force equals the jet's momentum flux rho U^2 b (integral of Cp
+    d(x/b) over the whole plate = 2), whatever the profile's shape, so a ratio away from 1 is a
+    momentum-balance error, not a redistribution of pressure.
+    """
+    x = np.linspace(0.0, float(xb[-1]), 20001)
+    exact = float(np.trapezoid(free_streamline_cp(x), x))
+    return float(np.trapezoid(cp, xb)) / exact
 
 
 def temporal_noise(series: FloatArray) -> float:

@@ -132,7 +132,8 @@ def noise_table(records: list[dict[str, Any]]) -> pd.DataFrame:
     return pd.DataFrame(rows).set_index("model") if rows else pd.DataFrame()
 
 
-PLATE_COLUMNS = ("cp_rms_error", "cp_max_error", "cp_stagnation", "sheet_speed",
+PLATE_COLUMNS = ("cp_rms_error", "cp_max_error", "cp_stagnation", "plate_force",
+                 "near_wall_cp", "near_wall_cp_eos", "sheet_speed",
                  "stabilization_re", "penetrations",
                  "noise_spatial", "noise_temporal", "density_drift_mean", "density_drift_max",
                  "cp_stagnation_drift", "wall_time_s")
@@ -228,7 +229,9 @@ def findings(records: list[dict[str, Any]]) -> str:
                 f"{fmt(on.get('sheet_speed'))} (Re_s {fmt(stabilization_re(on))})."
             )
         lines.append("")
+        lines += _pressure_source_note(prs)
         lines += _wall_neighbour_note(prs)
+    lines += _stabilization_trend_note(records)
     groups = collision_groups(records)
     if groups:
         lines += ["**What the collision distance alpha_c does** (0 = no collision model; "
@@ -269,6 +272,48 @@ def findings(records: list[dict[str, Any]]) -> str:
                   "measure especially scatters by tens of per cent between runs that differ "
                   "only slightly, so read factors near 1 as 'no clear effect'."]
     return "\n".join(lines)
+
+
+def _pressure_source_note(prs: list[tuple[dict[str, Any], dict[str, Any]]]) -> list[str]:
+    """Plate force vs momentum flux, and clipped pressure vs compression, off -> on."""
+    rows = [(off, on) for off, on in prs if on.get("plate_force") is not None]
+    if not rows:
+        return []
+    out = ["**Where the plate pressure comes from.** Plate force / jet momentum flux (steady "
+           "momentum balance: 1); for the fluid next to the plate (|x| <= b, two rows), the Cp it "
+           "carries and the Cp its mean compression gives through the equation of state without "
+           "clipping (carried >> compression: the pressure is clipped noise):", ""]
+    for off, on in rows:
+        out.append(
+            f"- {label(on)}: off: force {fmt(off.get('plate_force'))}, carried "
+            f"{fmt(off.get('near_wall_cp'))} vs compression {fmt(off.get('near_wall_cp_eos'))}; "
+            f"on: force {fmt(on.get('plate_force'))}, carried {fmt(on.get('near_wall_cp'))} vs "
+            f"compression {fmt(on.get('near_wall_cp_eos'))}.")
+    out.append("")
+    return out
+
+
+def _stabilization_trend_note(records: list[dict[str, Any]]) -> list[str]:
+    """Cp error of the stabilized pgm1/WF2 model (no collision) against l0 and alpha_s."""
+    runs = [r for r in completed(records) if r.get("stabilization") and r.get("gradient") == "pgm1"
+            and r.get("weight") == "wf2" and not r.get("collision_distance")
+            and r.get("stabilization_walls", True) is not False]
+    by_l0 = sorted((r for r in runs if r.get("alpha_s") == DEFAULT_ALPHA_S), key=resolution)
+    by_alpha = sorted((r for r in runs if resolution(r) == 20), key=lambda r: r["alpha_s"])
+    out = []
+    for group, what in ((by_l0, "resolution (alpha_s 0.01)"), (by_alpha, "alpha_s (b/20)")):
+        if len(group) < 2:
+            continue
+        cells = [
+            (f"b/{resolution(r)}" if what.startswith("res") else f"alpha_s {r['alpha_s']:g}")
+            + f": Cp error {fmt(r.get('cp_rms_error'))}, Re_s {fmt(stabilization_re(r))}, sheet "
+            f"{fmt(r.get('sheet_speed'))} U, force {fmt(r.get('plate_force'))}"
+            for r in group]
+        out.append(f"- against {what}: " + "; ".join(cells) + ".")
+    if not out:
+        return []
+    return ["**The stabilized model (pgm1, WF2, wall neighbours) against resolution and "
+            "alpha_s** (its added viscosity nu_s falls with l0 and with alpha_s):", "", *out, ""]
 
 
 def _wall_neighbour_note(prs: list[tuple[dict[str, Any], dict[str, Any]]]) -> list[str]:
