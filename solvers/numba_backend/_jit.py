@@ -21,7 +21,7 @@ from numba import njit
 
 def kernel(fn: Any) -> Any:
     """``njit(cache=True, parallel=True)(fn)`` with a serial build as ``.serial``."""
-    parallel = njit(cache=True, parallel=True)(fn)
+    parallel: Any = njit(cache=True, parallel=True)(fn)
     twin = types.FunctionType(
         fn.__code__, fn.__globals__, fn.__name__ + "_serial", fn.__defaults__, fn.__closure__
     )
