@@ -36,8 +36,11 @@ def figures(
 ) -> list[Path]:
     out: list[Path] = []
     prs = [p for p in pairs(records) if not p[0].get("collision_distance")]
-    for fn in (_snapshots, _plate_cp, _histories):
-        path = fn(prs, arrays, outdir)
+    # the plate profile shows every run without a collision model, paired with an
+    # unstabilized twin or not (the b/40 and alpha_s runs of the quick tier are not)
+    plain = [r for r in completed(records) if not r.get("collision_distance")]
+    for path in (_snapshots(prs, arrays, outdir), _plate_cp(plain, arrays, outdir),
+                 _histories(prs, arrays, outdir)):
         if path is not None:
             out.append(path)
     path = _noise_bars(pairs(records), outdir)
@@ -100,11 +103,8 @@ def _snapshots(prs: list, arrays: Callable, outdir: Path) -> Path | None:
     return path
 
 
-def _plate_cp(prs: list, arrays: Callable, outdir: Path) -> Path | None:
-    recs: dict[str, dict[str, Any]] = {}
-    for pair in prs:
-        for rec in pair:
-            recs[rec["run_id"]] = rec
+def _plate_cp(records: list[dict[str, Any]], arrays: Callable, outdir: Path) -> Path | None:
+    recs = {rec["run_id"]: rec for rec in records}
     grads = sorted({r["gradient"] for r in recs.values()})
     if not grads:
         return None
@@ -131,8 +131,13 @@ def _plate_cp(prs: list, arrays: Callable, outdir: Path) -> Path | None:
         ax.set_title(f"plate Cp, {g}")
         ax.set_xlabel("x / b")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=6)
+        ax.legend(fontsize=6, loc="upper right")
     axes[0, 0].set_ylabel("Cp (time mean over the window)")
+    # room above the curves for the longest legend (a row per line), so it hides none of them
+    lines = [line for ax in axes[0] for line in ax.get_lines()]
+    top = max([1.05] + [float(np.nanmax(line.get_ydata())) for line in lines])
+    rows = max(len(ax.get_lines()) for ax in axes[0])
+    axes[0, 0].set_ylim(-0.05, top + 0.06 * rows)
     path = outdir / "plate_cp.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
