@@ -367,3 +367,16 @@ def test_diagnostics_survive_outflow_removal() -> None:
     inner = (x > 0.03) & (x < 0.07) & (np.abs(s.state().pos[:, 1] - 0.06) < 0.02)
     np.testing.assert_allclose(n[inner], n0, rtol=1e-3)
     assert s.diagnostics()["free_surface"][np.argmin(x)]  # the left edge is still flagged
+
+
+def test_model_choices_come_from_the_registries() -> None:
+    """A plugin's weighting function, Laplacian or gradient model is an allowed jet parameter."""
+    from mpsbench.kernels import WEIGHTS
+    from mpsbench.operators import GRADIENTS, LAPLACIANS
+
+    case = get_case("water-jet")
+    for param, registry in (("weight", WEIGHTS), ("laplacian", LAPLACIANS),
+                            ("gradient", GRADIENTS)):
+        choices = case.param(param).choices
+        assert choices is not None and set(registry.names()) == set(choices), param
+    assert case.param("gradient").choices[:3] == ("pgm1", "pgm2", "pgm3")

@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 
 from mpsbench.kernels import WEIGHTS
-from mpsbench.operators import LAPLACIANS
+from mpsbench.operators import GRADIENTS, LAPLACIANS
 
 # The four Laplacians of method.md section 3, in the order the tables list them.
 MODELS = ("koshizuka-oka", "khayyer-gotoh", "xu-jin", "xu-jin-analytic")
@@ -40,6 +40,13 @@ def laplacian_names() -> tuple[str, ...]:
 def weight_names() -> tuple[str, ...]:
     names = list(WEIGHTS.names())
     return tuple([w for w in WFS if w in names] + sorted(n for n in names if n not in WFS))
+
+
+def gradient_names() -> tuple[str, ...]:
+    """Registered pressure-gradient models (pgm1-3 first), plugin models included."""
+    names = list(GRADIENTS.names())
+    builtin = ("pgm1", "pgm2", "pgm3")
+    return tuple([g for g in builtin if g in names] + sorted(n for n in names if n not in builtin))
 
 
 def colour(model: str) -> str:

@@ -41,6 +41,7 @@ from mpsbench.particles import Kind
 from mpsbench.probes import Callback, PointPressure
 from mpsbench.runner import run
 
+from . import _common as cm
 from . import _jet_figures as figs
 from . import _jet_tables as tabs
 from ._jet_geometry import JetGeometry, build_problem, plate_points
@@ -99,15 +100,16 @@ class WaterJetCase(Case):
         Param("l0", L0_FINE, "particle spacing (b/l0 must be a whole number)", "m",
               minimum=0.0, exclusive_minimum=True),
         Param("gradient", "pgm1", "pressure-gradient model", kind=str,
-              choices=("pgm1", "pgm2", "pgm3")),
+              choices=cm.gradient_names()),
         Param("stabilization", True, "stabilization (method.md 5) on/off", kind=bool),
         Param("alpha_s", 0.01, "stabilization coefficient", "", minimum=0.0, maximum=1.0),
         Param("stabilization_walls", True,
               "wall and dummy particles are neighbours in the stabilization sum", kind=bool),
         Param("collision_distance", 0.0, "collision distance alpha_c (0 = no collision model)",
               "l0", minimum=0.0, maximum=0.99),
-        Param("weight", "wf2", "weighting function", kind=str, choices=("wf1", "wf2")),
-        Param("laplacian", "xu-jin", "Laplacian model (viscous term)", kind=str),
+        Param("weight", "wf2", "weighting function", kind=str, choices=cm.weight_names()),
+        Param("laplacian", "xu-jin", "Laplacian model (viscous term)", kind=str,
+              choices=cm.laplacian_names()),
         Param("re_ratio", 2.1, "r_e / l0", "", minimum=1.0, maximum=10.0),
         Param("c0_ratio", 10.0, "sound speed c0 / U", "", minimum=1.0),
         Param("cfl", 0.2, "Courant number of dt = cfl l0 / (c0 + |u|max)", "",
