@@ -192,13 +192,16 @@ def _check(
         raise Diverged("non-finite position or velocity")
     if not np.all(np.isfinite(st.pressure)):
         raise Diverged("non-finite pressure")
+    # Masks over whole columns, not row gathers: st.pos[fluid] of an (N, 2) array costs ~100 us
+    # at N = 6,400, more than a numba diffusion step, and this runs after every step.
     fluid = st.kind == Kind.FLUID
     if max_speed is not None and fluid.any():
-        vmax = float(np.sqrt((st.vel[fluid] ** 2).sum(axis=1)).max())
+        speed2 = st.vel[:, 0] ** 2 + st.vel[:, 1] ** 2
+        vmax = float(np.sqrt(np.max(speed2, where=fluid, initial=0.0)))
         if vmax > max_speed:
             raise Diverged(f"fluid speed {vmax:.4g} m/s exceeds the bound {max_speed:.4g} m/s")
-    if fluid.any():
-        out = problem.box.outside(st.pos[fluid], margin)
+    if fluid.any() and not all(problem.box.periodic):
+        out = problem.box.outside(st.pos, margin) & fluid
         if out.any():
             raise Diverged(f"{int(out.sum())} fluid particle(s) left the domain")
     name = getattr(problem.physics, "field_name", None)

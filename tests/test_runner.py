@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mpsbench.config import FlowPhysics, Models, TimeStepping
-from mpsbench.particles import Box, Particles
+from mpsbench.particles import Box, Kind, Particles
 from mpsbench.probes import Callback, Probe
 from mpsbench.protocol import Capabilities, Problem, SolverBase, Status
 from mpsbench.runner import DivergenceLimits, RunResult, run
@@ -202,6 +202,15 @@ def test_breakdowns_are_diverged_runs(fault: str, words: str) -> None:
     assert result.n_steps == (2 if fault == "fpe" else 3)
     assert solver.status == Status.DIVERGED
     assert result.final is not None
+
+
+@pytest.mark.parametrize("fault", ["fast", "escape"])
+def test_only_fluid_particles_count_for_speed_and_escape(fault: str) -> None:
+    """A wall particle moving fast or sitting outside the box is the solver's business."""
+    problem = toy_problem()
+    problem.particles.kind[1:3] = Kind.WALL  # the particles the faults touch
+    assert run(ToySolver(fault=fault, at_step=3), problem, end_time=1.0).ok
+    assert not run(ToySolver(fault=fault, at_step=3), toy_problem(), end_time=1.0).ok
 
 
 def test_divergence_limits_can_be_tightened() -> None:
