@@ -12,12 +12,14 @@ from mpsbench.validations._jet_geometry import JetGeometry, build_problem, plate
 from mpsbench.validations._jet_metrics import (
     TABLE_CP,
     TABLE_XB,
+    cp_errors,
     frame_measures,
     free_streamline_cp,
     free_streamline_x,
     interior_fluid,
     penetrations,
     plate_force_ratio,
+    plate_profile,
     pressure_deviation,
     stabilization_viscosity,
     surface_centroid,
@@ -380,3 +382,20 @@ def test_model_choices_come_from_the_registries() -> None:
         choices = case.param(param).choices
         assert choices is not None and set(registry.names()) == set(choices), param
     assert case.param("gradient").choices[:3] == ("pgm1", "pgm2", "pgm3")
+
+
+def test_plate_profile_folds_the_two_sides_and_cp_errors_measure_it() -> None:
+    xb = np.arange(-25, 26) * 0.1
+    exact = free_streamline_cp(np.abs(xb))
+    tilt = 0.02 * xb  # antisymmetric: folding cancels it
+    samples = np.vstack([exact + tilt + 0.05, exact + tilt - 0.05])  # two times, mean exact
+    cp, std = plate_profile(samples)
+    half = np.arange(26) * 0.1
+    np.testing.assert_allclose(cp, free_streamline_cp(half), atol=1e-15)
+    np.testing.assert_allclose(std, 0.05, atol=1e-15)
+    assert cp_errors(half, cp, 2.0) == pytest.approx((0.0, 0.0), abs=1e-15)
+    # +0.1 everywhere on 0..1 b and exact beyond: RMS over the 21 sensors of 0..2 b
+    bumped = cp + np.where(half <= 1.0 + 1e-9, 0.1, 0.0)
+    rms, worst = cp_errors(half, bumped, 2.0)
+    assert rms == pytest.approx(0.1 * math.sqrt(11 / 21), rel=1e-12)
+    assert worst == pytest.approx(0.1, rel=1e-12)

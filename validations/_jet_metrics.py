@@ -240,6 +240,21 @@ def stabilization_viscosity(weight: str, re_ratio: float, l0: float, alpha_s: fl
     return alpha_s * l0 * moment / (4.0 * n0 * dt)
 
 
+def plate_profile(samples: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Time mean and std of plate Cp samples (rows: times; columns: sensors at x/b = -X..X,
+    symmetric about the middle one), folded onto x >= 0 by averaging the two sides."""
+    mid = samples.shape[1] // 2
+    mean, std = samples.mean(axis=0), samples.std(axis=0)
+    return 0.5 * (mean[mid:] + mean[mid::-1]), 0.5 * (std[mid:] + std[mid::-1])
+
+
+def cp_errors(xb: FloatArray, cp: FloatArray, x_max: float) -> tuple[float, float]:
+    """RMS and max |Cp - Cp_exact| over the sensors at 0 <= x/b <= x_max."""
+    inside = xb <= x_max + 1e-9
+    err = cp[inside] - free_streamline_cp(xb[inside])
+    return float(np.sqrt(np.mean(err**2))), float(np.max(np.abs(err)))
+
+
 def tait_cp(dn: float, c0_over_u: float, gamma: float = 7.0) -> float:
     """Cp = p / (rho U^2 / 2) of the Tait equation at n/n0 = 1 + dn, not clipped."""
     return float(2.0 * c0_over_u**2 / gamma * ((1.0 + dn) ** gamma - 1.0))
