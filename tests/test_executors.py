@@ -221,8 +221,11 @@ def test_interrupt_then_resume(
     the output folder locked); SIGINT to the group, as a terminal's Ctrl-C does.
     """
     study = tmp_path / "kill.toml"
+    # 0.4 s per run: the 15 runs left after the fifth record take 3 s on two workers, so a
+    # test process descheduled for a second on a loaded machine still signals a running study
+    # (with 0.15 s the study once finished first and exited 0 before the Ctrl-C arrived)
     study.write_text(
-        f'case = "{TOY}"\ntier = "smoke"\n[params]\nsleep = 0.15\n'
+        f'case = "{TOY}"\ntier = "smoke"\n[params]\nsleep = 0.4\n'
         '[grid]\nre_ratio = [1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0, 5.5, 6.0]\n'
     )
     n_grid = 20  # 10 radii x 2 weights (the smoke tier's grid)
@@ -252,10 +255,11 @@ def test_interrupt_then_resume(
         finally:
             with contextlib.suppress(ProcessLookupError):  # anything left of this test's group
                 os.killpg(proc.pid, signal.SIGKILL)
+    seen = f"exit status {proc.returncode} with {len(list(runs.glob('*.json')))}/{n_grid} records"
     if sig == signal.SIGKILL:
-        assert proc.returncode == -signal.SIGKILL
+        assert proc.returncode == -signal.SIGKILL, seen
     else:  # Ctrl-C: a prompt exit with status 130, the busy workers stopped
-        assert proc.returncode == 130
+        assert proc.returncode == 130, seen
         assert time.monotonic() - t_signal < 10
     done_before = len(load_records(out / TOY))
     assert 5 <= done_before < n_grid
