@@ -264,8 +264,10 @@ def plate_force_ratio(xb: FloatArray, cp: FloatArray) -> float:
     """Integral of a plate Cp profile over 0 <= x/b <= xb[-1] against the free-streamline one.
 
     In a steady jet the plate force equals the jet's momentum flux rho U^2 b (integral of Cp
-    d(x/b) over the whole plate = 2), whatever the profile's shape, so a ratio away from 1 is a
-    momentum-balance error, not a redistribution of pressure.
+    d(x/b) over the whole plate = 2), whatever the profile's shape, so a ratio away from 1 says
+    the plate pressure does not balance the momentum the jet brings - in a particle model either
+    momentum is not conserved or the wall particles' pressure is not the force the fluid feels -
+    rather than that the pressure was redistributed.
     """
     x = np.linspace(0.0, float(xb[-1]), 20001)
     exact = float(np.trapezoid(free_streamline_cp(x), x))
