@@ -29,7 +29,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from pathlib import Path
 from typing import Any
 
-from mpsbench.study import Task, _crashed, atomic_write_text, execute_task
+from mpsbench.study import Task, _crashed, atomic_write_bytes, atomic_write_text, execute_task
 
 FolderFn = Callable[[Task], Path]
 """Maps a task to the folder whose ``runs/`` receives its record."""
@@ -62,20 +62,6 @@ class Executor:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _atomic_bytes(path: Path, data: bytes) -> None:
-    """Write bytes to a temp file in the same folder, then rename (as for the records)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def _write_crash(
@@ -287,7 +273,7 @@ class DaskExecutor(Executor):
                 runs = Path(folder(task)) / "runs"
                 runs.mkdir(parents=True, exist_ok=True)
                 if npz is not None:
-                    _atomic_bytes(runs / f"{task.run_id}.npz", npz)
+                    atomic_write_bytes(runs / f"{task.run_id}.npz", npz)
                 atomic_write_text(runs / f"{task.run_id}.json", text)
                 yield task, json.loads(text)
         finally:

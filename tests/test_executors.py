@@ -329,3 +329,27 @@ def test_cli_study_on_a_scheduler_address(
     assert f"executor: dask (scheduler {address})" in capsys.readouterr().err
     assert len(load_records(out / TOY)) == 4
     assert len(dask_client.scheduler_info()["workers"]) == 2  # still up
+
+
+def test_atomic_writes_leave_whole_shareable_files_or_nothing(tmp_path: Path) -> None:
+    """Records and arrays (local or from dask) get the same atomic write and file mode."""
+    from mpsbench.study import _atomic_replace, atomic_write_bytes, atomic_write_text
+
+    mask = os.umask(0)
+    os.umask(mask)
+    path = tmp_path / "rec.json"
+    atomic_write_text(path, '{"a": "\u00e9"}')
+    assert path.read_bytes() == '{"a": "\u00e9"}'.encode()
+    blob = tmp_path / "run.npz"
+    atomic_write_bytes(blob, b"\x00\x01")
+    for p in (path, blob):
+        assert p.stat().st_mode & 0o777 == 0o666 & ~mask
+
+    def broken(tmp: str) -> None:
+        Path(tmp).write_text("half")
+        raise OSError("disk full")
+
+    with pytest.raises(OSError, match="disk full"):
+        _atomic_replace(path, broken)
+    assert path.read_bytes() == '{"a": "\u00e9"}'.encode()  # the old file is untouched
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.json", "run.npz"]  # no temp left
