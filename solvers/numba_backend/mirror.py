@@ -20,8 +20,9 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
-from mpsbench.particles import Box, Kind, Particles
+from mpsbench.particles import Box, Particles
 
+from ..reference.boundaries import extrapolate_through_wall, mirror_points
 from ._jit import kernel, pick
 from .cells import CellNeighbourList, box_period, build_csr, half_width, min_image
 from .kernels import _w_in
@@ -157,18 +158,9 @@ def mirror_velocity(
     Returns a copy of ``p.vel`` with the boundary rows replaced (see the module docstring).
     """
     vel = p.vel.copy()
-    bnd = np.nonzero((p.kind == Kind.WALL) | (p.kind == Kind.DUMMY))[0]
-    if "wall_dist" not in p.fields or len(bnd) == 0:
-        return vel
-    fluid = np.nonzero(p.kind == Kind.FLUID)[0]
-    if len(fluid) == 0:
-        return vel
-    normal = np.column_stack([p.fields["wall_nx"][bnd], p.fields["wall_ny"][bnd]])
-    has = np.hypot(normal[:, 0], normal[:, 1]) > 0
-    bnd, normal = bnd[has], normal[has]
+    bnd, fluid, mirror = mirror_points(p)
     if len(bnd) == 0:
         return vel
-    mirror = p.pos[bnd] + 2.0 * p.fields["wall_dist"][bnd, None] * normal
     nf = len(fluid)
     both = np.ascontiguousarray(np.vstack([p.pos[fluid], mirror]))
     group = np.zeros(len(both), np.int64)
@@ -179,8 +171,7 @@ def mirror_velocity(
         csr.offsets, csr.nbr, both, box_period(box), nf, np.ascontiguousarray(p.vel[fluid]),
         wcode, float(re), u_mirror,
     )
-    wall = p.vel[bnd]
-    vel[bnd] = 2.0 * wall - np.where(np.isnan(u_mirror), wall, u_mirror)
+    vel[bnd] = extrapolate_through_wall(p.vel[bnd], u_mirror)
     return vel
 
 

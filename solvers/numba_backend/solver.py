@@ -41,7 +41,7 @@ from mpsbench.operators import lattice_constants
 from mpsbench.particles import Kind, Particles
 from mpsbench.protocol import Capabilities, Problem, SolverBase
 
-from ..reference.boundaries import InflowBoundary, outflow_mask
+from ..reference.boundaries import InflowBoundary, carry, update_open_boundaries
 from . import kernels, pairs, steps
 from .cells import CellNeighbourList, CSRNeighbours, box_period, build_csr
 from .mirror import mirror_velocity
@@ -447,28 +447,16 @@ class NumbaSolver(SolverBase):
         assert self.problem is not None
         if self.inflow is None and not self.problem.outflows:
             return
-        grew = False
-        if self.inflow is not None:
-            self.p, grew = self.inflow.update(self.p, dt)  # new rows are appended at the end
-        gone = outflow_mask(self.p, self.problem.outflows)
-        if gone.any():
-            self.p = self.p.subset(~gone)
-        if grew or gone.any():
-            keep = ~gone
-            self.number_density = self._carry(self.number_density, keep)
-            self.free_surface = self._carry(self.free_surface, keep)
-            self.static_n = self._carry(self.static_n, keep)
-            self.group = self._carry(self.group + 1, keep) - 1  # new particles: no group
-            self.loose = self._carry(self.loose, keep)
+        self.p, keep = update_open_boundaries(self.p, self.inflow, self.problem.outflows, dt)
+        if keep is not None:
+            # the kernels want contiguous arrays; a boolean selection already is one
+            self.number_density = carry(self.number_density, keep)
+            self.free_surface = carry(self.free_surface, keep)
+            self.static_n = carry(self.static_n, keep)
+            self.group = carry(self.group + 1, keep) - 1  # new particles: no group
+            self.loose = carry(self.loose, keep)
             self.neigh.set_static(group=self.group, loose=self.loose)
             self._allocate()
-
-    @staticmethod
-    def _carry(arr: Any, keep: NDArray[np.bool_]) -> Any:
-        """A per-particle array after inflow rows were appended and outflow particles removed."""
-        grown = np.zeros(len(keep), dtype=arr.dtype)
-        grown[: len(arr)] = arr
-        return np.ascontiguousarray(grown[keep])
 
     # ------------------------------------------------------------------ protocol
     def _advance(self, dt: float) -> None:

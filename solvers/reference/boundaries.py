@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
@@ -85,12 +87,54 @@ def outflow_mask(p: Particles, regions: tuple[Region, ...]) -> NDArray[np.bool_]
     return gone
 
 
-def remove_outflow(p: Particles, regions: tuple[Region, ...]) -> tuple[Particles, int]:
-    """Drop fluid particles inside any outflow region; returns the new set and the count removed."""
-    gone = outflow_mask(p, regions)
-    if not gone.any():
-        return p, 0
-    return p.subset(~gone), int(gone.sum())
+def update_open_boundaries(
+    p: Particles, inflow: InflowBoundary | None, outflows: tuple[Region, ...], dt: float
+) -> tuple[Particles, NDArray[np.bool_] | None]:
+    """Advance the inflow reservoir by ``dt`` and drop the fluid inside the outflow regions.
+
+    Returns the new particle set and ``keep``: over the old particles followed by the rows the
+    inflow appended, which of them remain (None when the set did not change).  A solver moves
+    its per-particle arrays along with :func:`carry`.  Both backends use this, so they add and
+    remove the same particles in the same order.
+    """
+    grew = False
+    if inflow is not None:
+        p, grew = inflow.update(p, dt)  # new rows are appended at the end
+    gone = outflow_mask(p, outflows)
+    if gone.any():
+        p = p.subset(~gone)
+    return p, (~gone if grew or gone.any() else None)
+
+
+def carry(arr: NDArray[Any], keep: NDArray[np.bool_]) -> NDArray[Any]:
+    """A per-particle array after :func:`update_open_boundaries`: survivors keep their values
+    (so diagnostics stay valid between steps), new reservoir rows get 0 / False."""
+    grown = np.zeros(len(keep), dtype=arr.dtype)
+    grown[: len(arr)] = arr
+    return grown[keep]
+
+
+def mirror_points(p: Particles) -> tuple[NDArray[np.intp], NDArray[np.intp], FloatArray]:
+    """Boundary particles with wall geometry, the fluid particles, and the boundary particles'
+    mirror points: their reflections across the wall line (``pos + 2 wall_dist n``).
+
+    Empty index arrays when there is no wall geometry, no such boundary particle or no fluid.
+    """
+    none = np.zeros(0, np.intp)
+    bnd = np.nonzero((p.kind == Kind.WALL) | (p.kind == Kind.DUMMY))[0]
+    fluid = np.nonzero(p.kind == Kind.FLUID)[0]
+    if "wall_dist" not in p.fields or len(bnd) == 0 or len(fluid) == 0:
+        return none, none, np.zeros((0, 2))
+    normal = np.column_stack([p.fields["wall_nx"][bnd], p.fields["wall_ny"][bnd]])
+    has = np.hypot(normal[:, 0], normal[:, 1]) > 0
+    bnd, normal = bnd[has], normal[has]
+    return bnd, fluid, p.pos[bnd] + 2.0 * p.fields["wall_dist"][bnd, None] * normal
+
+
+def extrapolate_through_wall(wall_vel: FloatArray, u_mirror: FloatArray) -> FloatArray:
+    """u_b = 2 u_wall - u_mirror (linear through the wall line); where the fit found no fluid
+    (NaN) the boundary particle keeps its prescribed velocity."""
+    return 2.0 * wall_vel - np.where(np.isnan(u_mirror), wall_vel, u_mirror)
 
 
 def mirror_velocity(p: Particles, weight: WeightFunction, re: float, box: Box) -> FloatArray:
@@ -107,17 +151,9 @@ def mirror_velocity(p: Particles, weight: WeightFunction, re: float, box: Box) -
     prescribed velocity is kept.  Boundary particles without wall geometry keep theirs too.
     """
     vel = p.vel.copy()
-    wall_vel = p.vel  # a boundary particle's vel is its prescribed wall velocity
-    bnd = np.nonzero((p.kind == Kind.WALL) | (p.kind == Kind.DUMMY))[0]
-    if "wall_dist" not in p.fields or len(bnd) == 0:
+    bnd, fluid, mirror = mirror_points(p)
+    if len(bnd) == 0:
         return vel
-    fluid = np.nonzero(p.kind == Kind.FLUID)[0]
-    if len(fluid) == 0:
-        return vel
-    normal = np.column_stack([p.fields["wall_nx"][bnd], p.fields["wall_ny"][bnd]])
-    has = np.hypot(normal[:, 0], normal[:, 1]) > 0
-    bnd, normal = bnd[has], normal[has]
-    mirror = p.pos[bnd] + 2.0 * p.fields["wall_dist"][bnd, None] * normal
     fpos, mpos, boxsize = _common_frame(p.pos[fluid], mirror, re, box)
     ftree = cKDTree(fpos, boxsize=boxsize)
     sdm = ftree.sparse_distance_matrix(cKDTree(mpos, boxsize=boxsize), re, output_type="coo_matrix")
@@ -125,10 +161,8 @@ def mirror_velocity(p: Particles, weight: WeightFunction, re: float, box: Box) -
         p.pos[fluid[sdm.row]] - mirror[sdm.col], sdm.col, sdm.data, p.vel[fluid[sdm.row]],
         len(bnd), weight, re, box,
     )
-    for ax in range(2):
-        vel[bnd, ax] = 2.0 * wall_vel[bnd, ax] - np.where(
-            np.isnan(u_mirror[:, ax]), wall_vel[bnd, ax], u_mirror[:, ax]
-        )
+    # a boundary particle's vel is its prescribed wall velocity
+    vel[bnd] = extrapolate_through_wall(p.vel[bnd], u_mirror)
     return vel
 
 

@@ -28,7 +28,7 @@ from mpsbench.operators import get_gradient, get_laplacian, lattice_constants, n
 from mpsbench.particles import Kind, Particles
 from mpsbench.protocol import Capabilities, Problem, SolverBase
 
-from .boundaries import InflowBoundary, mirror_velocity, outflow_mask
+from .boundaries import InflowBoundary, carry, mirror_velocity, update_open_boundaries
 from .neighbours import SkinnedPairs
 
 FloatArray = NDArray[np.float64]
@@ -234,28 +234,11 @@ class ReferenceSolver(SolverBase):
 
     def _update_open_boundaries(self, dt: float) -> None:
         assert self.problem is not None
-        grew = False
-        if self.inflow is not None:
-            self.p, grew = self.inflow.update(self.p, dt)  # new rows are appended at the end
-        gone = outflow_mask(self.p, self.problem.outflows)
-        if gone.any():
-            self.p = self.p.subset(~gone)
-        if grew or gone.any():
-            keep = ~gone
-            self.number_density = self._carry(self.number_density, keep)
-            self.free_surface = self._carry(self.free_surface, keep)
+        self.p, keep = update_open_boundaries(self.p, self.inflow, self.problem.outflows, dt)
+        if keep is not None:
+            self.number_density = carry(self.number_density, keep)
+            self.free_surface = carry(self.free_surface, keep)
             self.neigh.invalidate()
-
-    @staticmethod
-    def _carry(arr: Any, keep: NDArray[np.bool_]) -> Any:
-        """A diagnostics array after inflow rows were appended and outflow particles removed.
-
-        Surviving particles keep their values (so diagnostics() stays valid between steps);
-        new reservoir rows get 0 / False until the next step computes them.
-        """
-        grown = np.zeros(len(keep), dtype=arr.dtype)
-        grown[: len(arr)] = arr
-        return grown[keep]
 
     # ------------------------------------------------------------------ protocol
     def _advance(self, dt: float) -> None:
