@@ -16,7 +16,8 @@ from typing import Any
 
 import pandas as pd
 
-from mpsbench.summary import CaseSection, Rendered, header_lines, overview_rows, verdict
+from mpsbench.reporting import Rendered
+from mpsbench.summary import CaseSection, header_lines, overview_rows, verdict
 
 CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:0;color:#1b1f24;

@@ -41,16 +41,58 @@ def markdown_table(df: pd.DataFrame, floatfmt: str = ".4g") -> str:
 
 
 @dataclass
-class CaseOutputs:
-    """Everything :func:`render_case_outputs` produced for one case (and one set of records)."""
+class Rendered:
+    """What :func:`render_case_outputs` wrote for one set of records (a case for one solver,
+    or a case across all solvers), or what an earlier render left on disk."""
 
-    case: Case
     records: list[dict[str, Any]]
     checks: list[CheckResult]
     tables: dict[str, pd.DataFrame]
     figures: list[Path]
     findings: str
-    outdir: Path
+    folder: Path
+    headline: str = ""
+
+    @classmethod
+    def from_disk(cls, folder: Path, records: list[dict[str, Any]]) -> Rendered:
+        """What an earlier render left in ``folder`` (used when the case's code is unavailable)."""
+        checks: list[CheckResult] = []
+        try:
+            raw = json.loads((folder / "checks.json").read_text())
+            checks = [CheckResult(str(c["name"]), c.get("passed"), str(c.get("detail", "")))
+                      for c in raw]
+        except (OSError, ValueError, TypeError, KeyError):
+            pass
+        tables = {p.stem: pd.read_csv(p, index_col=0)
+                  for p in sorted((folder / "tables").glob("*.csv"))}
+        figures = sorted((folder / "figures").glob("*.png"))
+        path = folder / "findings.md"
+        findings = path.read_text() if path.exists() else ""
+        return cls(records, checks, tables, figures, findings, folder)
+
+    @property
+    def completed(self) -> int:
+        return sum(1 for r in self.records if r.get("status") == "completed")
+
+    @property
+    def failures(self) -> list[str]:
+        """Why this set fails (empty when it passes)."""
+        out = [f"check failed: {c.name}" for c in self.checks if c.passed is False]
+        if not self.records:
+            out.append("no runs")
+        elif not self.completed:
+            out.append("no run completed")
+        return out
+
+    @property
+    def passed(self) -> bool:
+        return not self.failures
+
+    def headline_table(self) -> tuple[str, pd.DataFrame] | None:
+        if not self.tables:
+            return None
+        name = self.headline if self.headline in self.tables else next(iter(self.tables))
+        return name, self.tables[name]
 
 
 def write_case_outputs(
@@ -63,7 +105,7 @@ def write_case_outputs(
 def render_case_outputs(
     case: Case, records: list[dict[str, Any]], outdir: str | Path, *,
     arrays_dir: str | Path | None = None,
-) -> CaseOutputs:
+) -> Rendered:
     """Like :func:`write_case_outputs` but return everything written.
 
     ``arrays_dir`` is the folder whose ``runs/`` holds the runs' arrays (default ``outdir``);
@@ -102,7 +144,7 @@ def render_case_outputs(
     findings = case.findings(records) if records else ""
     (outdir / "findings.md").write_text(findings.strip() + "\n" if findings.strip() else "")
     (outdir / "report.md").write_text(render_report(case, records, checks, tables, figures, outdir))
-    return CaseOutputs(case, records, checks, tables, figures, findings, outdir)
+    return Rendered(records, checks, tables, figures, findings, outdir, case.headline)
 
 
 def check_lines(checks: list[CheckResult]) -> list[str]:

@@ -31,71 +31,12 @@ from typing import Any
 
 import pandas as pd
 
-from mpsbench.cases import Case, CheckResult
-from mpsbench.reporting import CaseOutputs, check_lines, markdown_table, render_case_outputs
+from mpsbench.cases import Case
+from mpsbench.reporting import Rendered, check_lines, markdown_table, render_case_outputs
 from mpsbench.study import COMMON_COLUMNS, atomic_write_text, load_records
 
 ENV_COLUMNS = ("mpsbench_version", "python", "numpy_version", "machine", "git_commit")
 MANIFEST = "manifest.json"
-
-
-@dataclass
-class Rendered:
-    """One rendered set of records (a case for one solver, or a case across all solvers)."""
-
-    records: list[dict[str, Any]]
-    checks: list[CheckResult]
-    tables: dict[str, pd.DataFrame]
-    figures: list[Path]
-    findings: str
-    folder: Path
-    headline: str = ""
-
-    @classmethod
-    def from_outputs(cls, out: CaseOutputs) -> Rendered:
-        return cls(out.records, out.checks, out.tables, out.figures, out.findings, out.outdir,
-                   out.case.headline)
-
-    @classmethod
-    def from_disk(cls, folder: Path, records: list[dict[str, Any]]) -> Rendered:
-        """What an earlier render left in ``folder`` (used when the case's code is unavailable)."""
-        checks: list[CheckResult] = []
-        try:
-            raw = json.loads((folder / "checks.json").read_text())
-            checks = [CheckResult(str(c["name"]), c.get("passed"), str(c.get("detail", "")))
-                      for c in raw]
-        except (OSError, ValueError, TypeError, KeyError):
-            pass
-        tables = {p.stem: pd.read_csv(p, index_col=0)
-                  for p in sorted((folder / "tables").glob("*.csv"))}
-        figures = sorted((folder / "figures").glob("*.png"))
-        path = folder / "findings.md"
-        findings = path.read_text() if path.exists() else ""
-        return cls(records, checks, tables, figures, findings, folder)
-
-    @property
-    def completed(self) -> int:
-        return sum(1 for r in self.records if r.get("status") == "completed")
-
-    @property
-    def failures(self) -> list[str]:
-        """Why this set fails (empty when it passes)."""
-        out = [f"check failed: {c.name}" for c in self.checks if c.passed is False]
-        if not self.records:
-            out.append("no runs")
-        elif not self.completed:
-            out.append("no run completed")
-        return out
-
-    @property
-    def passed(self) -> bool:
-        return not self.failures
-
-    def headline_table(self) -> tuple[str, pd.DataFrame] | None:
-        if not self.tables:
-            return None
-        name = self.headline if self.headline in self.tables else next(iter(self.tables))
-        return name, self.tables[name]
 
 
 @dataclass
@@ -141,15 +82,15 @@ def render_case(case: Case, records: list[dict[str, Any]], folder: Path) -> Case
         return section
     solvers = solver_order(records)
     if len(solvers) == 1:
-        rendered = Rendered.from_outputs(render_case_outputs(case, records, folder))
+        rendered = render_case_outputs(case, records, folder)
         section.solvers = [SolverSection(solvers[0], _version(records), rendered)]
         return section
-    section.combined = Rendered.from_outputs(render_case_outputs(case, records, folder))
+    section.combined = render_case_outputs(case, records, folder)
     section.by_solver = solver_table(case, records)
     for solver in solvers:
         recs = [r for r in records if r.get("solver") == solver]
         out = render_case_outputs(case, recs, folder / "by-solver" / solver, arrays_dir=folder)
-        section.solvers.append(SolverSection(solver, _version(recs), Rendered.from_outputs(out)))
+        section.solvers.append(SolverSection(solver, _version(recs), out))
     return section
 
 
