@@ -138,6 +138,13 @@ def _inside(r, r2, re_s):
     return (r <= re_s) & (r2 > 0.0)
 
 
+@njit(cache=True, inline="always")
+def _w_over_r2(wcode, r, r2, re, inv_re, re_s):
+    """W_ij / r_ij^2 of the gradient, divergence and PGM sums; 0 outside the support."""
+    q = _w_in(wcode, min(r, re), re, inv_re) / r2
+    return q if _inside(r, r2, re_s) else 0.0
+
+
 @njit(cache=True)
 def weight(wcode, r, re):
     """W(r): wf1 = re/r - 1, wf2 = (1 - r/re)^3; 0 beyond the support (and at r = 0)."""
@@ -236,8 +243,7 @@ def gradient(offsets, nbr, pos, period, phi, wcode, re, n0, out):
             j = nbr[k]
             dx, dy, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
             r = np.sqrt(r2)
-            q = _w_in(wcode, min(r, re), re, inv_re) / r2
-            q = q if _inside(r, r2, re_s) else 0.0
+            q = _w_over_r2(wcode, r, r2, re, inv_re, re_s)
             c = (phi[j] - phii) * q
             gx += c * dx
             gy += c * dy
@@ -267,8 +273,7 @@ def divergence(offsets, nbr, pos, period, u, wcode, re, n0, out):
             j = nbr[k]
             dx, dy, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
             r = np.sqrt(r2)
-            q = _w_in(wcode, min(r, re), re, inv_re) / r2
-            q = q if _inside(r, r2, re_s) else 0.0
+            q = _w_over_r2(wcode, r, r2, re, inv_re, re_s)
             s += ((u[j, 0] - ui) * dx + (u[j, 1] - vi) * dy) * q
         out[i] = f * s
     return out
@@ -355,8 +360,7 @@ def pressure_gradient(offsets, nbr, pos, period, p, pmin, mask, model, wcode, re
                     continue
                 dx, dy, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
                 r = np.sqrt(r2)
-                q = _w_in(wcode, min(r, re), re, inv_re) / r2
-                q = q if _inside(r, r2, re_s) else 0.0
+                q = _w_over_r2(wcode, r, r2, re, inv_re, re_s)
                 if model == 2:
                     pij = (pi + p[j]) - (pmin[i] + pmin[j])
                 elif model == 1:

@@ -24,7 +24,7 @@ from numba import njit, prange
 
 from ._jit import kernel
 from .cells import half_width
-from .kernels import SUPPORT, _coef_in, _dw_in, _inside, _sep, _w_in
+from .kernels import SUPPORT, _coef_in, _dw_in, _inside, _sep, _w_in, _w_over_r2
 
 CHUNKS = 2
 FLUID = 0  # mpsbench.particles.Kind
@@ -252,8 +252,7 @@ def gradient_pairs(
                     continue
                 dx, dy, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
                 r = np.sqrt(r2)
-                q = _w_in(wcode, min(r, re), re, inv_re) / r2
-                q = q if _inside(r, r2, re_s) else 0.0
+                q = _w_over_r2(wcode, r, r2, re, inv_re, re_s)
                 if model == 1:
                     ci = (p[j] - pmi) * q
                     cj = (pi - pmin[j]) * q

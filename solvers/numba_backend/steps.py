@@ -15,7 +15,7 @@ from numba import njit, prange
 
 from ._jit import kernel
 from .cells import half_width
-from .kernels import DIM, SUPPORT, _coef_in, _inside, _sep, _w_in
+from .kernels import DIM, SUPPORT, _coef_in, _inside, _sep, _w_in, _w_over_r2
 
 FLUID = 0  # mpsbench.particles.Kind
 WALL = 1
@@ -258,8 +258,7 @@ def operator_entries(
             for k in range(offsets[i], offsets[i + 1]):
                 dx, dy, r2 = _sep(pos, nbr[k], xi, yi, px, py, hx, hy)
                 r = np.sqrt(r2)
-                q = _w_in(wcode, min(r, re), re, inv_re) / r2
-                q = q if _inside(r, r2, re_s) else 0.0
+                q = _w_over_r2(wcode, r, r2, re, inv_re, re_s)
                 coef[k] -= bx * (f * q * dx) + by * (f * q * dy)
         sa = 0.0
         sd = 0.0
