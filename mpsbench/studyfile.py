@@ -227,8 +227,12 @@ class _Validator:
             self.fail("scheduler", "a scheduler address only goes with executor = \"dask\"")
         out = self._string(data, "out", "") or None
 
-        cases = self._load_cases(case_names, "cases" if "cases" in data else "case")
-        self._check_solvers(solver_names, "solvers" if "solvers" in data else "solver")
+        from mpsbench.protocol import SOLVERS
+
+        cases: list[Case] = self._load_named(
+            case_names, "cases" if "cases" in data else "case", CASES, "case")
+        self._load_named(solver_names, "solvers" if "solvers" in data else "solver", SOLVERS,
+                         "solver")
         for case in cases:
             if tier in TIERS and tier not in case.tiers:
                 self.fail("tier", f"{_fmt(tier)} is not a tier of case {case.name!r}: one of "
@@ -289,33 +293,21 @@ class _Validator:
             return []
         return list(default or [])
 
-    def _load_cases(self, names: list[str], given: str) -> list[Case]:
-        cases = []
+    def _load_named(self, names: list[str], given: str, registry: Any, what: str) -> list[Any]:
+        """Look each name up in ``registry``; an unknown or broken entry is reported under its
+        key (``cases[1]`` for a list, ``case`` for a single name) and left out."""
+        out = []
         for k, name in enumerate(names):
-            key = f"{given}[{k}]" if given == "cases" else given
-            if name not in CASES:
-                self.fail(key, f"unknown case {name!r}" + _suggest(name, CASES.names())
-                          + "; known cases: " + ", ".join(CASES.names()))
+            key = f"{given}[{k}]" if given == f"{what}s" else given
+            if name not in registry:
+                self.fail(key, f"unknown {what} {name!r}" + _suggest(name, registry.names())
+                          + f"; known {what}s: " + ", ".join(registry.names()))
                 continue
             try:
-                cases.append(CASES.get(name))
+                out.append(registry.get(name))
             except PluginLoadError as exc:
                 self.fail(key, str(exc))
-        return cases
-
-    def _check_solvers(self, names: list[str], given: str) -> None:
-        from mpsbench.protocol import SOLVERS
-
-        for k, name in enumerate(names):
-            key = f"{given}[{k}]" if given == "solvers" else given
-            if name not in SOLVERS:
-                self.fail(key, f"unknown solver {name!r}" + _suggest(name, SOLVERS.names())
-                          + "; known solvers: " + ", ".join(SOLVERS.names()))
-                continue
-            try:
-                SOLVERS.get(name)
-            except PluginLoadError as exc:
-                self.fail(key, str(exc))
+        return out
 
     # ---- parameters
     def _param_for(self, key: str, name: str, cases: list[Case]) -> list[Param] | None:
