@@ -365,3 +365,11 @@ def test_import_without_numba_names_the_extra(monkeypatch):
         ImportError, match=r"numba is not installed: pip install 'mpsbench\[fast\]'"
     ):
         importlib.import_module("mpsbench.solvers.numba_backend")
+
+
+def test_kernel_kind_codes_match_the_particle_kinds() -> None:
+    """The kernels compare kinds with plain ints; they must be mpsbench.particles.Kind's."""
+    from mpsbench.solvers.numba_backend import kernels
+
+    for name in ("FLUID", "WALL", "DUMMY", "INFLOW"):
+        assert getattr(kernels, name) == int(getattr(Kind, name)), name

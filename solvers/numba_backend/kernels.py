@@ -55,7 +55,11 @@ WEIGHT_CODES = {"wf1": 1, "wf2": 2}
 LAPLACIAN_CODES = {"koshizuka-oka": 1, "khayyer-gotoh": 2, "xu-jin": 3, "xu-jin-analytic": 4}
 GRADIENT_CODES = {"pgm1": 1, "pgm2": 2, "pgm3": 3}
 
-FLUID = 0  # mpsbench.particles.Kind.FLUID
+# mpsbench.particles.Kind as plain ints for the kernels (checked in tests/test_numba_kernels.py)
+FLUID = 0
+WALL = 1
+DUMMY = 2
+INFLOW = 3
 
 
 def weight_code(name: str) -> int:
@@ -136,6 +140,59 @@ def _coef_in(model, wcode, r, rc, r2, re, inv_re, pref):
 def _inside(r, r2, re_s):
     """The closed support under rounding: 0 < r <= re (1 + SUPPORT_RTOL) (``re_s``)."""
     return (r <= re_s) & (r2 > 0.0)
+
+
+@njit(cache=True, inline="always")
+def _power(x, gamma, igamma):
+    """x**gamma; by repeated squaring when gamma is a whole number 1..16 (``igamma`` > 0).
+
+    pow() costs about as much as a dozen neighbour terms; squaring is a few multiplications
+    and differs from it by a few ulp (Tait's gamma = 7: x * x^2 * x^4).
+    """
+    if igamma == 0:
+        return x**gamma
+    result = 1.0
+    base = x
+    e = igamma
+    while e > 0:
+        if e & 1:
+            result *= base
+        base *= base
+        e >>= 1
+    return result
+
+
+@njit(cache=True, inline="always")
+def _integer_gamma(gamma):
+    """The ``igamma`` of :func:`_power`: gamma when it is a whole number 1..16, else 0."""
+    return int(gamma) if gamma == np.floor(gamma) and 1.0 <= gamma <= 16.0 else 0
+
+
+@njit(cache=True, inline="always")
+def _state_of(i, ni, kind, n0, tait, prefactor, gamma, igamma, clip, threshold, n_out, p_out,
+              surface, inner):
+    """Particle i's number density ``ni`` -> pressure, free surface and inner flags.
+
+    Tait: p = prefactor ((n/n0)^gamma - 1), prefactor rho0 c0^2 / gamma; linear: p =
+    prefactor (n/n0 - 1), prefactor rho0 c0^2.  Negative pressure clipped to 0 with ``clip``
+    (np.maximum(p, 0): NaN stays NaN).  Fluid, wall and inflow particles carry pressure; those
+    with n < ``threshold`` (beta n0) are free surface and get p = 0, as do dummy particles.
+    ``inner`` = fluid and not free surface (the particles the stabilization acts on).
+    """
+    n_out[i] = ni
+    ratio = ni / n0
+    if tait:
+        pres = prefactor * (_power(ratio, gamma, igamma) - 1.0)
+    else:
+        pres = prefactor * (ratio - 1.0)
+    if clip and not pres >= 0.0:
+        pres = pres if pres != pres else 0.0
+    k_i = kind[i]
+    carries = k_i != DUMMY
+    fs = carries and ni < threshold
+    surface[i] = fs
+    inner[i] = (k_i == FLUID) and not fs
+    p_out[i] = 0.0 if (fs or not carries) else pres
 
 
 @njit(cache=True, inline="always")

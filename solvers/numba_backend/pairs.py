@@ -24,11 +24,20 @@ from numba import njit, prange
 
 from ._jit import kernel
 from .cells import half_width
-from .kernels import SUPPORT, _coef_in, _dw_in, _inside, _sep, _w_in, _w_over_r2
+from .kernels import (
+    FLUID,
+    SUPPORT,
+    _coef_in,
+    _dw_in,
+    _inside,
+    _integer_gamma,
+    _sep,
+    _state_of,
+    _w_in,
+    _w_over_r2,
+)
 
 CHUNKS = 2
-FLUID = 0  # mpsbench.particles.Kind
-DUMMY = 2
 
 
 def chunk_bounds(offsets: np.ndarray, chunks: int = CHUNKS) -> np.ndarray:
@@ -119,21 +128,6 @@ def density_pairs(offsets, nbr, pos, period, wcode, re, bounds, acc):
             a[i] += s
 
 
-@njit(cache=True, inline="always")
-def _power(x, gamma, igamma):
-    if igamma == 0:
-        return x**gamma
-    result = 1.0
-    base = x
-    e = igamma
-    while e > 0:
-        if e & 1:
-            result *= base
-        base *= base
-        e >>= 1
-    return result
-
-
 @kernel
 def pressure_from(
     acc, static_n, kind, n0, tait, prefactor, gamma, clip, beta, n_out, p_out, surface, inner
@@ -143,26 +137,13 @@ def pressure_from(
     n = n_out.shape[0]
     chunks = acc.shape[0]
     threshold = beta * n0
-    igamma = int(gamma) if gamma == np.floor(gamma) and 1.0 <= gamma <= 16.0 else 0
+    igamma = _integer_gamma(gamma)
     for i in prange(n):
         s = acc[0, i]
         for c in range(1, chunks):
             s += acc[c, i]
-        ni = s + static_n[i]
-        n_out[i] = ni
-        ratio = ni / n0
-        if tait:
-            pres = prefactor * (_power(ratio, gamma, igamma) - 1.0)
-        else:
-            pres = prefactor * (ratio - 1.0)
-        if clip and not pres >= 0.0:
-            pres = pres if pres != pres else 0.0
-        k_i = kind[i]
-        carries = k_i != DUMMY
-        fs = carries and ni < threshold
-        surface[i] = fs
-        inner[i] = (k_i == FLUID) and not fs
-        p_out[i] = 0.0 if (fs or not carries) else pres
+        _state_of(i, s + static_n[i], kind, n0, tait, prefactor, gamma, igamma, clip, threshold,
+                  n_out, p_out, surface, inner)
 
 
 # --------------------------------------------------------------------------- pressure gradient

@@ -15,13 +15,18 @@ from numba import njit, prange
 
 from ._jit import kernel
 from .cells import half_width
-from .kernels import DIM, SUPPORT, _coef_in, _inside, _sep, _w_in, _w_over_r2
-
-FLUID = 0  # mpsbench.particles.Kind
-WALL = 1
-DUMMY = 2
-INFLOW = 3
-
+from .kernels import (
+    DIM,
+    FLUID,
+    SUPPORT,
+    _coef_in,
+    _inside,
+    _integer_gamma,
+    _sep,
+    _state_of,
+    _w_in,
+    _w_over_r2,
+)
 
 # --------------------------------------------------------------------------- setup constants
 
@@ -80,26 +85,6 @@ def static_density(offsets, nbr, pos, period, wcode, re, group, loose, out):
 # --------------------------------------------------------------------------- flow step
 
 
-@njit(cache=True, inline="always")
-def _power(x, gamma, igamma):
-    """x**gamma; by repeated squaring when gamma is a whole number 1..16 (``igamma`` > 0).
-
-    pow() costs about as much as a dozen neighbour terms; squaring is a few multiplications
-    and differs from it by a few ulp (Tait's gamma = 7: x * x^2 * x^4).
-    """
-    if igamma == 0:
-        return x**gamma
-    result = 1.0
-    base = x
-    e = igamma
-    while e > 0:
-        if e & 1:
-            result *= base
-        base *= base
-        e >>= 1
-    return result
-
-
 @kernel
 def density_pressure(
     offsets, nbr, pos, period, wcode, re, static_n, kind, n0, tait, prefactor, gamma, clip,
@@ -107,11 +92,7 @@ def density_pressure(
 ):
     """Number density, equation of state and free surface in one pass (reference ``_pressure``).
 
-    n_i = sum_j W_ij + static_n_i.  Tait: p = prefactor ((n/n0)^gamma - 1) with prefactor
-    rho0 c0^2 / gamma; linear: p = prefactor (n/n0 - 1) with prefactor rho0 c0^2.  Negative
-    pressure clipped to 0 with ``clip``.  Fluid, wall and inflow particles carry pressure; those
-    with n < beta n0 are free surface and get p = 0, as do dummy particles.  ``inner`` = fluid
-    and not free surface (the particles the stabilization acts on).
+    n_i = sum_j W_ij + static_n_i; the rest as :func:`.kernels._state_of`.
     """
     n = offsets.shape[0] - 1
     px = period[0]
@@ -121,7 +102,7 @@ def density_pressure(
     inv_re = 1.0 / re
     re_s = re * SUPPORT
     threshold = beta * n0
-    igamma = int(gamma) if gamma == np.floor(gamma) and 1.0 <= gamma <= 16.0 else 0
+    igamma = _integer_gamma(gamma)
     for i in prange(n):
         xi = pos[i, 0]
         yi = pos[i, 1]
@@ -131,21 +112,8 @@ def density_pressure(
             r = np.sqrt(r2)
             w = _w_in(wcode, min(r, re), re, inv_re)
             s += w if _inside(r, r2, re_s) else 0.0
-        ni = s + static_n[i]
-        n_out[i] = ni
-        ratio = ni / n0
-        if tait:
-            pres = prefactor * (_power(ratio, gamma, igamma) - 1.0)
-        else:
-            pres = prefactor * (ratio - 1.0)
-        if clip and not pres >= 0.0:  # np.maximum(pres, 0): NaN stays NaN
-            pres = pres if pres != pres else 0.0
-        k_i = kind[i]
-        carries = k_i != DUMMY
-        fs = carries and ni < threshold
-        surface[i] = fs
-        inner[i] = (k_i == FLUID) and not fs
-        p_out[i] = 0.0 if (fs or not carries) else pres
+        _state_of(i, s + static_n[i], kind, n0, tait, prefactor, gamma, igamma, clip, threshold,
+                  n_out, p_out, surface, inner)
     return n_out
 
 
