@@ -17,12 +17,8 @@ from collections.abc import Sequence
 
 import mpsbench
 from mpsbench import commands
-from mpsbench.config import ConfigError
+from mpsbench.errors import MpsbenchError
 from mpsbench.registry import PluginLoadError, UnknownNameError
-
-
-class UsageError(Exception):
-    """Bad input from the user: reported in one line, exit status 2."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -50,7 +46,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     try:
         return int(args.func(args) or 0)
-    except (UsageError, ConfigError, UnknownNameError, PluginLoadError, FileNotFoundError) as exc:
+    except (MpsbenchError, UnknownNameError, PluginLoadError, FileNotFoundError) as exc:
         print(f"mpsbench {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -16,6 +16,9 @@ from typing import Any, Generic, TypeVar
 
 T = TypeVar("T")
 
+OWN_DISTRIBUTION = "mpsbench"
+"""Entry points of this distribution are the built-ins (declared in its pyproject.toml)."""
+
 
 class UnknownNameError(KeyError, ValueError):
     """Raised for a name no registry entry carries; the message lists the known names."""
@@ -94,9 +97,13 @@ class Registry(Generic[T]):
             return
         self._scanned = True
         self.ignored = []
+        found = []
         for ep in entry_points(group=self.group):
             dist = getattr(ep.dist, "name", "?") if ep.dist is not None else "?"
-            origin = f"entry-point:{dist}"
+            found.append((dist != OWN_DISTRIBUTION, dist, ep))
+        # mpsbench's own entry points (its built-ins) first: they win a name over plugins
+        for _, dist, ep in sorted(found, key=lambda f: f[0]):
+            origin = "builtin" if dist == OWN_DISTRIBUTION else f"entry-point:{dist}"
             if ep.name in self._entries:
                 # built-ins (and the first plugin of a name) win; the loser is reported
                 taken = self._entries[ep.name].origin

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from hypothesis import settings
 
-from mpsbench.operators import lattice_pairs
-from mpsbench.particles import Box, Particles, jitter
+from mpsbench.physics.operators import lattice_pairs
+from mpsbench.physics.particles import Box, Particles, jitter
 
 # Property tests run real numerics; the default 200 ms deadline is flaky on a loaded CI box.
 settings.register_profile("mpsbench", deadline=None, print_blob=True)

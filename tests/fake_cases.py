@@ -19,9 +19,9 @@ import numpy as np
 import pandas as pd
 from mpsbench.solvers.reference import ReferenceSolver
 
-from mpsbench.cases import CASES, Case, CaseRun, CheckResult, Param
-from mpsbench.protocol import SOLVERS
-from mpsbench.runner import run
+from mpsbench.cases import CASES, Case, CaseCheck, CaseRun, Param
+from mpsbench.run.protocol import SOLVERS
+from mpsbench.run.runner import run
 from mpsbench.testing.problems import diffusion_problem
 
 
@@ -61,12 +61,12 @@ class ToyDiffusion(Case):
         return CaseRun({"l2_error": err, "peak": float(np.abs(phi).max())}, [res],
                        {"phi": phi, "x": x})
 
-    def checks(self, records: list[dict[str, Any]]) -> list[CheckResult]:
+    def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
         worst = max(float(r.get("l2_error") or math.inf) for r in records)
         limit = 1e-9 if self.fail_check else 0.5
         detail = f"worst {worst:.3g} < {limit:g}"
-        return [CheckResult("l2 error below limit", worst < limit, detail),
-                CheckResult("undecided check", None, "no data to decide")]
+        return [CaseCheck("l2 error below limit", worst < limit, detail),
+                CaseCheck("undecided check", None, "no data to decide")]
 
     def tables(self, records: list[dict[str, Any]]) -> dict[str, Any]:
         df = pd.DataFrame(records)
@@ -111,9 +111,9 @@ class ToyCounter(Case):
         return CaseRun({"drift": 0.01 * params["k"] * self.drift_scale, "score": 10.0,
                         "label": f"k{params['k']}"})
 
-    def checks(self, records: list[dict[str, Any]]) -> list[CheckResult]:
+    def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
         ok = all((r.get("drift") or math.inf) < 1 for r in records)
-        return [CheckResult("drift small", ok, "drift < 1")]
+        return [CaseCheck("drift small", ok, "drift < 1")]
 
 
 @contextmanager

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mpsbench.particles import block
+from mpsbench.physics.particles import block
 
 
 def free_lattice(n_side: int, l0: float = 1.0) -> np.ndarray:

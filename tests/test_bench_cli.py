@@ -6,8 +6,8 @@ import json
 
 import pytest
 
-from mpsbench.bench import RECORD_FIELDS, spacing_for, workload
 from mpsbench.cli import main
+from mpsbench.run.bench import RECORD_FIELDS, spacing_for, workload
 
 pytest.importorskip("numba")
 

@@ -11,7 +11,7 @@ import pytest
 import mpsbench
 from mpsbench import cli
 from mpsbench.commands import catalog
-from mpsbench.config import ConfigError
+from mpsbench.errors import ConfigError, UsageError
 from mpsbench.registry import PluginLoadError, UnknownNameError
 
 
@@ -102,7 +102,7 @@ def test_no_command_prints_help_and_exits_2() -> None:
         UnknownNameError("unknown solver 'x'; known solvers: reference"),
         ConfigError("Models.weight = 'x' is not allowed: one of 'wf1', 'wf2'"),
         PluginLoadError("solver 'x' could not be loaded"),
-        cli.UsageError("bad input"),
+        UsageError("bad input"),
     ],
 )
 def test_user_errors_are_one_line_exit_2(

@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from mpsbench import cli
-from mpsbench.compare import CompareError, Rule, compare, load_results, metric_rule
+from mpsbench.results.compare import CompareError, Rule, compare, load_results, metric_rule
 from tests.fake_cases import ToyCounter, ToyDiffusion, only_cases
 
 Toys = tuple[ToyDiffusion, ToyCounter]

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mpsbench.config import (
+from mpsbench.physics.config import (
     ConfigError,
     DiffusionPhysics,
     FlowPhysics,

@@ -15,11 +15,11 @@ import pytest
 from mpsbench.solvers.reference import ReferenceSolver
 
 from mpsbench.cli import main
-from mpsbench.config import DiffusionPhysics
-from mpsbench.particles import Particles
-from mpsbench.protocol import SOLVERS, Capabilities, Problem, Status
+from mpsbench.physics.config import DiffusionPhysics
+from mpsbench.physics.particles import Particles
+from mpsbench.run.protocol import SOLVERS, Capabilities, Problem, Status
 from mpsbench.testing import (
-    CheckResult,
+    ConformanceResult,
     SolverCheckError,
     all_checks,
     check_solver,
@@ -275,7 +275,7 @@ def test_select_checks_by_substring() -> None:
 
 
 def test_check_result_as_dict() -> None:
-    r = CheckResult("check_x", "fail", "why", 0.123456)
+    r = ConformanceResult("check_x", "fail", "why", 0.123456)
     assert r.failed and r.as_dict() == {
         "check": "check_x",
         "outcome": "fail",

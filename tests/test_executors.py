@@ -19,9 +19,10 @@ from typing import Any
 
 import pytest
 
-from mpsbench.executors import DaskExecutor, LocalExecutor, make_executor, run_detached
-from mpsbench.study import environment, load_record, load_records, run_tasks
-from mpsbench.studyfile import parse_study
+from mpsbench.results.executors import DaskExecutor, LocalExecutor, make_executor, run_detached
+from mpsbench.results.records import environment, load_record, load_records
+from mpsbench.results.study_spec import parse_study
+from mpsbench.results.sweep import run_tasks
 from tests.test_studyfile import TOY, register_toy, toy_case  # noqa: F401 - fixture
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -161,7 +162,7 @@ def test_dask_skip_if_done_and_failures(tmp_path: Path, dask_client: Any) -> Non
 
 
 def test_dask_unknown_case_fails_only_its_run(tmp_path: Path, dask_client: Any) -> None:
-    from mpsbench.study import Task
+    from mpsbench.results.records import Task
 
     good = toy_tasks(weight=["wf1"], laplacian=["xu-jin"])
     unknown = Task("no-such-case", "reference", "smoke", {}, "unknown")
@@ -333,7 +334,7 @@ def test_cli_study_on_a_scheduler_address(
 
 def test_atomic_writes_leave_whole_shareable_files_or_nothing(tmp_path: Path) -> None:
     """Records and arrays (local or from dask) get the same atomic write and file mode."""
-    from mpsbench.study import _atomic_replace, atomic_write_bytes, atomic_write_text
+    from mpsbench.results.records import _atomic_replace, atomic_write_bytes, atomic_write_text
 
     mask = os.umask(0)
     os.umask(mask)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mpsbench.kernels import (
+from mpsbench.physics.weights import (
     SUPPORT_RTOL,
     WEIGHTS,
     WF1,

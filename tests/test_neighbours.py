@@ -8,8 +8,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from mpsbench.neighbours import PairList, brute_force_pairs, build_pairs
-from mpsbench.particles import Box
+from mpsbench.physics.neighbours import PairList, brute_force_pairs, build_pairs
+from mpsbench.physics.particles import Box
 
 LO = (-0.3, 1.2)
 HI = (2.1, 3.0)  # lengths 2.4 and 1.8

@@ -1,6 +1,7 @@
 """The numba backend against the reference backend: same problems, same answers (issue 8).
 
-Operators agree with :mod:`mpsbench.operators` to 1e-10 relative (tests/test_numba_kernels.py,
+Operators agree with :mod:`mpsbench.physics.operators` to 1e-10 relative
+(tests/test_numba_kernels.py,
 plus here the lattice at an integer r_e/l0, where half of the neighbours at r_e sit a rounding
 error outside it); diffusion and Couette runs to 1e-8; a WC-MPS dam break over 200 steps to
 1e-6 l0 in positions (measured: about 1e-13 l0; the backends differ only in the order of
@@ -18,12 +19,12 @@ import textwrap
 import numpy as np
 import pytest
 
-from mpsbench import operators as ops
-from mpsbench.config import Models
-from mpsbench.kernels import get_weight
-from mpsbench.neighbours import build_pairs
-from mpsbench.protocol import Problem, make_solver
-from mpsbench.runner import run
+from mpsbench.physics import operators as ops
+from mpsbench.physics.config import Models
+from mpsbench.physics.neighbours import build_pairs
+from mpsbench.physics.weights import get_weight
+from mpsbench.run.protocol import Problem, make_solver
+from mpsbench.run.runner import run
 from mpsbench.testing import parametrize_solver_checks, problems
 
 numba = pytest.importorskip("numba")
@@ -322,9 +323,9 @@ def test_without_numba_the_backend_is_listed_unavailable_with_the_reason():
 @pytest.mark.parametrize("wname", ["wf1", "wf2"])
 def test_mirror_velocities_match_the_reference(wname):
     from mpsbench.solvers.numba_backend import mirror
-    from mpsbench.solvers.reference.boundaries import mirror_velocity
 
-    from mpsbench.particles import jitter
+    from mpsbench.physics.boundaries import mirror_velocity
+    from mpsbench.physics.particles import jitter
 
     problem = problems.channel_problem(nx=12, ny=10, l0=0.01, top_velocity=(0.2, 0.0))
     p = problem.particles

@@ -1,4 +1,4 @@
-"""The numba compute layer against the numpy reference operators (mpsbench.operators).
+"""The numba compute layer against the numpy reference operators (mpsbench.physics.operators).
 
 Jittered clouds in free, x-periodic and periodic boxes; both weights; several radii.  One CSR
 list built at the largest radius plus a skin serves every radius, as in a solver.  Agreement is
@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mpsbench import operators as ops
-from mpsbench.kernels import get_weight
-from mpsbench.neighbours import PairList, build_pairs
-from mpsbench.particles import Box, Kind
+from mpsbench.physics import operators as ops
+from mpsbench.physics.neighbours import PairList, build_pairs
+from mpsbench.physics.particles import Box, Kind
+from mpsbench.physics.weights import get_weight
 
 numba = pytest.importorskip("numba")
 _backend = pytest.importorskip("mpsbench.solvers.numba_backend")
@@ -368,7 +368,7 @@ def test_import_without_numba_names_the_extra(monkeypatch):
 
 
 def test_kernel_kind_codes_match_the_particle_kinds() -> None:
-    """The kernels compare kinds with plain ints; they must be mpsbench.particles.Kind's."""
+    """The kernels compare kinds with plain ints; they must be mpsbench.physics.particles.Kind's."""
     from mpsbench.solvers.numba_backend import kernels
 
     for name in ("FLUID", "WALL", "DUMMY", "INFLOW"):

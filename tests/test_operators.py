@@ -5,9 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mpsbench.kernels import get_weight
-from mpsbench.neighbours import build_pairs
-from mpsbench.operators import (
+from mpsbench.physics.neighbours import build_pairs
+from mpsbench.physics.operators import (
     GRADIENTS,
     LAPLACIANS,
     divergence,
@@ -24,7 +23,8 @@ from mpsbench.operators import (
     pgm2,
     pgm3,
 )
-from mpsbench.particles import block
+from mpsbench.physics.particles import block
+from mpsbench.physics.weights import get_weight
 from mpsbench.registry import UnknownNameError
 from tests.helpers import free_lattice, interior_mask
 
@@ -200,7 +200,7 @@ def test_xu_jin_gradient_correction_helps_on_jittered_cloud(wf: str, ratio: floa
     tensor is isotropic, i.e. on a symmetric lattice; measured here: ~10x smaller error.)
     """
     p = block(-10.5, -10.5, 21, 21, 1.0)
-    from mpsbench.particles import jitter
+    from mpsbench.physics.particles import jitter
 
     jitter(p, 0.1, seed=3)
     pos = p.pos

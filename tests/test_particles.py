@@ -5,10 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from mpsbench.kernels import get_weight
-from mpsbench.neighbours import build_pairs
-from mpsbench.operators import lattice_constants, number_density
-from mpsbench.particles import (
+from mpsbench.physics.neighbours import build_pairs
+from mpsbench.physics.operators import lattice_constants, number_density
+from mpsbench.physics.particles import (
     Box,
     Kind,
     Particles,
@@ -19,6 +18,7 @@ from mpsbench.particles import (
     vertical_wall_layers,
     wall_layers,
 )
+from mpsbench.physics.weights import get_weight
 
 
 def unique_rows(pos: np.ndarray, l0: float) -> int:

@@ -28,11 +28,12 @@ import mpsbench.registry as registry_module
 from mpsbench import cli
 from mpsbench.cases import CASES
 from mpsbench.commands.catalog import models_catalog, solvers_catalog
-from mpsbench.config import ConfigError, Models
-from mpsbench.kernels import WEIGHTS, WF2
-from mpsbench.operators import GRADIENTS, LAPLACIANS, KoshizukaOka
-from mpsbench.protocol import SOLVERS
+from mpsbench.errors import ConfigError
+from mpsbench.physics.config import Models
+from mpsbench.physics.operators import GRADIENTS, LAPLACIANS, KoshizukaOka
+from mpsbench.physics.weights import WEIGHTS, WF2
 from mpsbench.registry import PluginLoadError
+from mpsbench.run.protocol import SOLVERS
 
 ROOT = Path(__file__).resolve().parents[1]
 PLUGIN = ROOT / "examples" / "plugin"
@@ -85,7 +86,7 @@ PLUGINS: dict[str, list[tuple[str, str]]] = {
         ("plugin-no-coefficients", f"{HERE}:NotALaplacian"),
         ("xu-jin", f"{HERE}:NotALaplacian"),  # cannot shadow a built-in
     ],
-    "mpsbench.kernels": [
+    "mpsbench.weights": [
         ("plugin-wf", f"{HERE}:GoodWeight"),
         ("plugin-half-wf", f"{HERE}:HalfWeight"),
     ],
@@ -101,7 +102,7 @@ PLUGINS: dict[str, list[tuple[str, str]]] = {
 }
 REGISTRIES = {
     "mpsbench.laplacians": LAPLACIANS,
-    "mpsbench.kernels": WEIGHTS,
+    "mpsbench.weights": WEIGHTS,
     "mpsbench.solvers": SOLVERS,
     "mpsbench.cases": CASES,
     "mpsbench.gradients": GRADIENTS,
@@ -213,7 +214,7 @@ def test_plugin_models_are_usable_by_name(plugins: None) -> None:
 def test_study_file_with_a_broken_plugin_fails_before_any_run(
     plugins: None, tmp_path: Path
 ) -> None:
-    from mpsbench.studyfile import StudyFileError, load_study
+    from mpsbench.results.study_spec import StudyFileError, load_study
     from tests.test_studyfile import TOY, register_toy
 
     register_toy()  # removed again with the other registry changes by the fixture
@@ -246,9 +247,9 @@ def test_example_plugin_in_process(monkeypatch: pytest.MonkeyPatch) -> None:
     from mpsbench_example.laplacian import LocalKoshizukaOka
     from mpsbench_example.solver import ExampleSolver
 
-    from mpsbench.kernels import get_weight
-    from mpsbench.neighbours import build_pairs
-    from mpsbench.operators import lattice_constants, lattice_pairs
+    from mpsbench.physics.neighbours import build_pairs
+    from mpsbench.physics.operators import lattice_constants, lattice_pairs
+    from mpsbench.physics.weights import get_weight
 
     pos, box = lattice_pairs(10, 0.1)
     w = get_weight("wf2")
@@ -327,7 +328,7 @@ def test_example_plugin_in_a_fresh_venv(tmp_path: Path) -> None:
 
 
 def test_run_case_by_names_and_with_overrides(tmp_path: Path) -> None:
-    from mpsbench.plugin_testing import run_case
+    from mpsbench.testing.plugins import run_case
     from tests.test_studyfile import TOY, register_toy
 
     register_toy()
@@ -357,7 +358,7 @@ def test_run_case_with_an_unregistered_solver_class_and_case() -> None:
     """A solver class and a case object nobody registered: registered for the call only."""
     from mpsbench.solvers.reference import ReferenceSolver
 
-    from mpsbench.plugin_testing import run_case
+    from mpsbench.testing.plugins import run_case
     from tests.test_studyfile import StudyToy
 
     class MySolver(ReferenceSolver):

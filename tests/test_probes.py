@@ -10,8 +10,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mpsbench.particles import Kind, Particles, block
-from mpsbench.probes import (
+from mpsbench.physics.particles import Kind, Particles, block
+from mpsbench.run.probes import (
     Callback,
     LayerAverage,
     PointPressure,

@@ -8,16 +8,16 @@ from pathlib import Path
 
 import numpy as np
 
-from mpsbench.config import Models
-from mpsbench.kernels import WEIGHTS, get_weight
-from mpsbench.neighbours import build_pairs
-from mpsbench.operators import (
+from mpsbench.physics.config import Models
+from mpsbench.physics.neighbours import build_pairs
+from mpsbench.physics.operators import (
     GRADIENTS,
     LAPLACIANS,
     get_laplacian,
     lattice_constants,
     lattice_pairs,
 )
+from mpsbench.physics.weights import WEIGHTS, get_weight
 
 README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
 

@@ -1,6 +1,7 @@
 """The reference backend (issue 3): diffusion decay rates, dam break, neighbour upkeep, boundaries.
 
-Oracles are computed here independently of :mod:`mpsbench.operators`: the weighting functions
+Oracles are computed here independently of :mod:`mpsbench.physics.operators`: the weighting
+functions
 and Laplacian coefficients are written out from shared method.md sections 1 and 3.
 """
 
@@ -14,13 +15,13 @@ import numpy as np
 import pytest
 from mpsbench.solvers.reference import ReferenceSolver
 
-from mpsbench.config import FlowPhysics, Models, TimeStepping
-from mpsbench.neighbours import PairList, build_pairs
-from mpsbench.operators import number_density
-from mpsbench.particles import Box, Kind, Particles
-from mpsbench.probes import Callback, LayerAverage, SurgeFront
-from mpsbench.protocol import Problem, Status
-from mpsbench.runner import run
+from mpsbench.physics.config import FlowPhysics, Models, TimeStepping
+from mpsbench.physics.neighbours import PairList, build_pairs
+from mpsbench.physics.operators import number_density
+from mpsbench.physics.particles import Box, Kind, Particles
+from mpsbench.run.probes import Callback, LayerAverage, SurgeFront
+from mpsbench.run.protocol import Problem, Status
+from mpsbench.run.runner import run
 from mpsbench.testing import problems
 
 LAPLACIANS = ("koshizuka-oka", "khayyer-gotoh", "xu-jin", "xu-jin-analytic")
@@ -82,7 +83,8 @@ TABLE_SLIPS = {
 
 
 def _weight(wf: str, r: np.ndarray, re: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """W, W', W'' of method.md section 1, written out again (independent of mpsbench.kernels)."""
+    """W, W', W'' of method.md section 1, written out again (independent of
+    mpsbench.physics.weights)."""
     if wf == "wf1":
         return re / r - 1.0, -re / r**2, 2.0 * re / r**3
     q = 1.0 - r / re

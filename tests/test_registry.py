@@ -11,10 +11,10 @@ from typing import Any
 import pytest
 
 import mpsbench.registry as registry_module
-from mpsbench.kernels import _validate_weight
-from mpsbench.operators import LAPLACIANS, _validate_laplacian
-from mpsbench.protocol import SOLVERS, _validate_solver
+from mpsbench.physics.operators import LAPLACIANS, _validate_laplacian
+from mpsbench.physics.weights import _validate_weight
 from mpsbench.registry import PluginLoadError, Registry, UnknownNameError, import_path
+from mpsbench.run.protocol import SOLVERS, _validate_solver
 
 MODULE = "mpsbench_test_plugin_mod"
 
@@ -65,7 +65,7 @@ def fake_entry_points(eps: dict[str, list[tuple[str, str, str | None]]]) -> Any:
 def test_import_path_forms(plugin_module: str) -> None:
     assert import_path(f"{plugin_module}:VALUE") == 42
     assert import_path(f"{plugin_module}.VALUE") == 42
-    assert import_path("mpsbench.kernels:WF2.name") == "wf2"  # nested attribute
+    assert import_path("mpsbench.physics.weights:WF2.name") == "wf2"  # nested attribute
     with pytest.raises(ModuleNotFoundError):
         import_path("no_such_module_xyz:thing")
 

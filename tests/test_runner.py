@@ -8,11 +8,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mpsbench.config import FlowPhysics, Models, TimeStepping
-from mpsbench.particles import Box, Kind, Particles
-from mpsbench.probes import Callback, Probe
-from mpsbench.protocol import Capabilities, Problem, SolverBase, Status
-from mpsbench.runner import DivergenceLimits, RunResult, run
+from mpsbench.physics.config import FlowPhysics, Models, TimeStepping
+from mpsbench.physics.particles import Box, Kind, Particles
+from mpsbench.run.probes import Callback, Probe
+from mpsbench.run.protocol import Capabilities, Problem, SolverBase, Status
+from mpsbench.run.runner import DivergenceLimits, RunResult, run
 from mpsbench.testing import problems
 
 

@@ -19,10 +19,10 @@ from typing import Any
 import pytest
 
 from mpsbench import cli
-from mpsbench.cases import CASES, Case, CaseRun, CheckResult, Param
-from mpsbench.config import ConfigError
-from mpsbench.study import load_records
-from mpsbench.studyfile import StudyFileError, check_tolerances, load_study, parse_study
+from mpsbench.cases import CASES, Case, CaseCheck, CaseRun, Param
+from mpsbench.errors import ConfigError
+from mpsbench.results.records import load_records
+from mpsbench.results.study_spec import StudyFileError, check_tolerances, load_study, parse_study
 
 TOY = "study-toy"
 
@@ -58,8 +58,8 @@ class StudyToy(Case):
         return CaseRun({"error": params["l0"] * params["re_ratio"] * factor / 100.0,
                         "n_pairs": int(10 * params["re_ratio"] ** 2)})
 
-    def checks(self, records: list[dict[str, Any]]) -> list[CheckResult]:
-        return [CheckResult("toy ran", bool(records), f"{len(records)} runs")]
+    def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
+        return [CaseCheck("toy ran", bool(records), f"{len(records)} runs")]
 
 
 def register_toy() -> None:
@@ -150,7 +150,7 @@ def test_tier_grid_when_no_grid(tmp_path: Path) -> None:
 
 
 def test_plugin_model_name_is_accepted(tmp_path: Path) -> None:
-    from mpsbench.operators import LAPLACIANS, KoshizukaOka
+    from mpsbench.physics.operators import LAPLACIANS, KoshizukaOka
 
     class Mine(KoshizukaOka):
         name = "mine"

@@ -203,7 +203,7 @@ def test_single_case_folder_gets_summary_and_index(toys: object, tmp_path: Path)
 
 def test_cases_with_fewer_longer_runs_are_submitted_first() -> None:
     from mpsbench.commands.validate import heavy_first
-    from mpsbench.study import Task
+    from mpsbench.results.records import Task
 
     tasks = [Task(case, "reference", "quick", {"i": i}, f"{case}{i}")
              for case, n in (("many", 3), ("few", 1), ("some", 2)) for i in range(n)]

@@ -9,11 +9,11 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
-from mpsbench.validations import couette as cou
+from mpsbench.validations.couette import case as cou
 
 from mpsbench import cli
-from mpsbench.config import ConfigError
-from mpsbench.particles import Kind
+from mpsbench.errors import ConfigError
+from mpsbench.physics.particles import Kind
 
 L, U = cou.L, cou.U
 RECORD_COLUMNS = ("case", "solver", "tier", "status", "reason", "wall_time_s",

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mpsbench.validations import _dam_metrics as dm
+from mpsbench.validations.dam_break import metrics as dm
 from mpsbench.validations import experiments
-from mpsbench.validations.dam_break import CASE, build
+from mpsbench.validations.dam_break.case import CASE, build
 
 GOOD = """# source: a paper
 # table: table 1

@@ -10,10 +10,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
-from mpsbench.validations import diffusion as dif
+from mpsbench.validations.diffusion import case as dif
 
 from mpsbench import cli
-from mpsbench.config import ConfigError
+from mpsbench.errors import ConfigError
 
 RECORD_COLUMNS = ("case", "solver", "tier", "status", "reason", "wall_time_s",
                   "particle_steps_per_s", "laplacian", "weight", "re_ratio", "l0", "jitter", "dt")

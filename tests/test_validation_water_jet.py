@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
-from mpsbench.validations._jet_geometry import JetGeometry, build_problem, plate_points
-from mpsbench.validations._jet_metrics import (
+from mpsbench.validations.water_jet.geometry import JetGeometry, build_problem, plate_points
+from mpsbench.validations.water_jet.metrics import (
     TABLE_CP,
     TABLE_XB,
     cp_errors,
@@ -30,11 +30,11 @@ from scipy.integrate import quad
 
 from mpsbench.cases import get_case
 from mpsbench.cli import main
-from mpsbench.config import FlowPhysics, Models
-from mpsbench.operators import lattice_constants
-from mpsbench.particles import Kind, Particles, block
-from mpsbench.protocol import make_solver
-from mpsbench.study import COMMON_COLUMNS
+from mpsbench.physics.config import FlowPhysics, Models
+from mpsbench.physics.operators import lattice_constants
+from mpsbench.physics.particles import Kind, Particles, block
+from mpsbench.results.records import COMMON_COLUMNS
+from mpsbench.run.protocol import make_solver
 
 REQUIRED_PARAMS = ("gradient", "stabilization", "alpha_s", "collision_distance", "weight", "l0")
 REQUIRED_METRICS = (
@@ -221,9 +221,9 @@ def test_penetration_count_and_temporal_noise() -> None:
 
 def test_stabilization_viscosity_matches_one_stabilization_step() -> None:
     """One step of u += (alpha_s l0/n0) sum |W'| (u_j - u_i) on sin(kx) = dt nu_s lap(u)."""
-    from mpsbench.kernels import get_weight
-    from mpsbench.neighbours import build_pairs
-    from mpsbench.operators import lattice_pairs
+    from mpsbench.physics.neighbours import build_pairs
+    from mpsbench.physics.operators import lattice_pairs
+    from mpsbench.physics.weights import get_weight
 
     n_side, l0, alpha_s, dt = 32, 0.01, 0.01, 1e-4
     pos, box = lattice_pairs(n_side, l0)
@@ -347,9 +347,9 @@ def test_validate_cli_smoke_tier(tmp_path) -> None:  # noqa: ANN001
 def test_diagnostics_survive_outflow_removal() -> None:
     """Removing outflow particles keeps the other particles' number density and surface flags
     (they used to be zeroed until the next step, so probes saw n = 0 everywhere)."""
-    from mpsbench.config import Region
-    from mpsbench.particles import Box
-    from mpsbench.protocol import Problem
+    from mpsbench.physics.config import Region
+    from mpsbench.physics.particles import Box
+    from mpsbench.run.protocol import Problem
 
     l0 = 0.01
     fluid = block(0.0, 0.0, 12, 12, l0)
@@ -373,8 +373,8 @@ def test_diagnostics_survive_outflow_removal() -> None:
 
 def test_model_choices_come_from_the_registries() -> None:
     """A plugin's weighting function, Laplacian or gradient model is an allowed jet parameter."""
-    from mpsbench.kernels import WEIGHTS
-    from mpsbench.operators import GRADIENTS, LAPLACIANS
+    from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+    from mpsbench.physics.weights import WEIGHTS
 
     case = get_case("water-jet")
     for param, registry in (("weight", WEIGHTS), ("laplacian", LAPLACIANS),

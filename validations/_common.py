@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mpsbench.kernels import WEIGHTS
-from mpsbench.operators import GRADIENTS, LAPLACIANS
+from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+from mpsbench.physics.weights import WEIGHTS
 
 # The four Laplacians of method.md section 3, in the order the tables list them.
 MODELS = ("koshizuka-oka", "khayyer-gotoh", "xu-jin", "xu-jin-analytic")

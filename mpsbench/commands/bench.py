@@ -1,6 +1,6 @@
 """``mpsbench bench``: particle-steps per second of solver backends, side by side.
 
-Runs the benchmark dam break (:mod:`mpsbench.bench`) at each ``--n`` on each ``--solver`` and on
+Runs the benchmark dam break (:mod:`mpsbench.run.bench`) at each ``--n`` on each ``--solver`` and on
 the reference backend, in this process, and prints a table with the speed-up over the reference
 measured in the same run; ``--json`` prints the records instead.  Exit status: 0, or 2 for an
 unknown or unavailable solver or a bad ``--n`` / ``--steps``.
@@ -40,7 +40,7 @@ def register(sub: Any) -> None:
 
 
 def _default_solvers() -> list[str]:
-    from mpsbench.protocol import SOLVERS
+    from mpsbench.run.protocol import SOLVERS
 
     out = []
     for name in SOLVERS.names():
@@ -53,9 +53,9 @@ def _default_solvers() -> list[str]:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from mpsbench.bench import MIN_N, format_table, run_bench
-    from mpsbench.cli import UsageError
-    from mpsbench.protocol import SOLVERS
+    from mpsbench.errors import UsageError
+    from mpsbench.run.bench import MIN_N, format_table, run_bench
+    from mpsbench.run.protocol import SOLVERS
 
     sizes = args.n or list(DEFAULT_SIZES)
     for n in sizes:

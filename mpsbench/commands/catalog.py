@@ -19,8 +19,8 @@ def register(sub: Any) -> None:
 
 
 def models_catalog() -> dict[str, list[dict[str, Any]]]:
-    from mpsbench.kernels import WEIGHTS
-    from mpsbench.operators import GRADIENTS, LAPLACIANS
+    from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+    from mpsbench.physics.weights import WEIGHTS
 
     out: dict[str, list[dict[str, Any]]] = {}
     for key, reg in (("weights", WEIGHTS), ("laplacians", LAPLACIANS), ("gradients", GRADIENTS)):
@@ -54,7 +54,7 @@ def _ignored_row(entry: Any) -> dict[str, Any]:
 
 
 def solvers_catalog() -> list[dict[str, Any]]:
-    from mpsbench.protocol import SOLVERS
+    from mpsbench.run.protocol import SOLVERS
 
     rows = []
     for name in SOLVERS.names():

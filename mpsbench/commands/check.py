@@ -35,9 +35,9 @@ def register(sub: Any) -> None:
 
 
 def cmd_check(args: argparse.Namespace) -> int:
-    from mpsbench.cli import UsageError
-    from mpsbench.protocol import SOLVERS
-    from mpsbench.testing import CheckResult, check_solver, select_checks
+    from mpsbench.errors import UsageError
+    from mpsbench.run.protocol import SOLVERS
+    from mpsbench.testing import ConformanceResult, check_solver, select_checks
 
     name = args.solver
     if name not in SOLVERS:
@@ -48,7 +48,7 @@ def cmd_check(args: argparse.Namespace) -> int:
     if args.select and not select_checks(args.select):
         raise UsageError(f"no check name contains {' or '.join(map(repr, args.select))}")
 
-    def show(r: CheckResult) -> None:
+    def show(r: ConformanceResult) -> None:
         label = r.outcome.upper()
         text = f"{label:<5} {r.check}"
         if r.reason:

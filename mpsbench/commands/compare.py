@@ -11,8 +11,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from mpsbench.cli import UsageError
-from mpsbench.compare import (
+from mpsbench.errors import UsageError
+from mpsbench.results.compare import (
     CompareError,
     changes_frame,
     compare,

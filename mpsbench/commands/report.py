@@ -16,17 +16,14 @@ from pathlib import Path
 from typing import Any
 
 from mpsbench.cases import Case, get_case
-from mpsbench.cli import UsageError
-from mpsbench.summary import (
-    ENV_COLUMNS,
+from mpsbench.errors import UsageError
+from mpsbench.results.folder import ENV_COLUMNS, case_folders, read_manifest, write_top_level
+from mpsbench.results.sections import (
     CaseSection,
-    case_folders,
     case_from_disk,
-    read_manifest,
     safe_render_case,
     solver_order,
     verdict,
-    write_top_level,
 )
 
 ORDER = 35

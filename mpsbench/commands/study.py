@@ -24,7 +24,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from mpsbench.cli import UsageError
+from mpsbench.errors import UsageError
 
 ORDER = 35
 
@@ -121,7 +121,7 @@ def study_lock(out: Path) -> Iterator[None]:
 
 
 def write_plan(out: Path, spec: Any, tasks: list[Any]) -> None:
-    from mpsbench.study import atomic_write_text
+    from mpsbench.results.records import atomic_write_text
 
     plan = {
         "study": spec.name,
@@ -142,10 +142,11 @@ def write_plan(out: Path, spec: Any, tasks: list[Any]) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from mpsbench.executors import ExecutorError, make_executor
-    from mpsbench.reporting import check_lines, write_case_outputs
-    from mpsbench.study import atomic_write_text, print_progress, run_tasks
-    from mpsbench.studyfile import check_tolerances, load_study
+    from mpsbench.results.case_report import check_lines, write_case_outputs
+    from mpsbench.results.executors import ExecutorError, make_executor
+    from mpsbench.results.records import atomic_write_text
+    from mpsbench.results.study_spec import check_tolerances, load_study
+    from mpsbench.results.sweep import print_progress, run_tasks
 
     spec = load_study(args.study)
     jobs = args.jobs if args.jobs is not None else (spec.jobs or 1)
@@ -228,7 +229,7 @@ def study_status(out: Path, tasks: list[dict[str, Any]] | None = None) -> dict[s
     ``tasks`` (dicts with case and run_id) defaults to ``OUT/plan.json``; without a plan only
     the records found are counted and ``pending`` is None.
     """
-    from mpsbench.study import load_record
+    from mpsbench.results.records import load_record
 
     if tasks is None:
         plan_path = out / PLAN_FILE
@@ -292,7 +293,7 @@ def cmd_status(args: argparse.Namespace) -> int:
     target = Path(args.target)
     tasks = None
     if target.is_file() and target.suffix == ".toml":
-        from mpsbench.studyfile import load_study
+        from mpsbench.results.study_spec import load_study
 
         spec = load_study(target)
         out = Path(args.out) if args.out else spec.default_out()

@@ -1,9 +1,10 @@
 """``mpsbench validate CASE|all``: run case studies at a tier and write a report folder.
 
-``validate CASE`` writes one case folder (see :mod:`mpsbench.reporting`) plus its summary.md and
+``validate CASE`` writes one case folder (see :mod:`mpsbench.results.case_report`) plus its
+summary.md and
 index.html.  ``validate all`` plans every run of every registered case (built-ins and plugins) for
 every ``--solver``, runs them through one pool with one progress count, and writes the results
-folder described in :mod:`mpsbench.summary` (default ``reports/<YYYYmmdd-HHMM>-<tier>/``).
+folder described in :mod:`mpsbench.results.folder` (default ``reports/<YYYYmmdd-HHMM>-<tier>/``).
 
 Exit status: 0 when every case passes its checks, 1 when one fails (or could not be loaded or
 run), 2 on a usage error (unknown case, solver or tier, bad ``--set``).
@@ -21,22 +22,16 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from mpsbench.cases import CASES, TIERS, Case, get_case
-from mpsbench.cli import UsageError
-from mpsbench.protocol import SOLVERS
-from mpsbench.reporting import check_lines
-from mpsbench.study import Task, atomic_write_text, environment, plan, print_progress, run_tasks
-from mpsbench.summary import (
-    MANIFEST,
-    CaseSection,
-    render_case,
-    safe_render_case,
-    verdict,
-    write_top_level,
-)
+from mpsbench.cases import CASES, TIERS, Case, case_order, get_case
+from mpsbench.errors import UsageError
+from mpsbench.results.case_report import check_lines
+from mpsbench.results.folder import MANIFEST, write_top_level
+from mpsbench.results.records import Task, atomic_write_text, environment
+from mpsbench.results.sections import CaseSection, render_case, safe_render_case, verdict
+from mpsbench.results.sweep import plan, print_progress, run_tasks
+from mpsbench.run.protocol import SOLVERS
 
 ORDER = 30
-BUILTIN_ORDER = ("diffusion", "couette", "water-jet", "dam-break")
 MAX_AUTO_JOBS = 4
 
 
@@ -90,12 +85,6 @@ def default_all_out(tier: str, root: Path = Path("reports")) -> Path:
     while path.exists():
         path, k = base.with_name(f"{base.name}-{k}"), k + 1
     return path
-
-
-def case_order(names: list[str]) -> list[str]:
-    """Built-in cases in the order of the README, then plugin cases by name."""
-    return [n for n in BUILTIN_ORDER if n in names] + sorted(n for n in names
-                                                             if n not in BUILTIN_ORDER)
 
 
 def cmd_validate(args: argparse.Namespace) -> int:

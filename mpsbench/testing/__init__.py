@@ -14,7 +14,7 @@ or get one pytest test per check in your own test suite::
     def test_conformance(solver, check):
         check(solver)
 
-Checks are chosen by the solver's declared :class:`~mpsbench.protocol.Capabilities`: a check
+Checks are chosen by the solver's declared :class:`~mpsbench.run.protocol.Capabilities`: a check
 that needs something the solver does not declare is skipped with the reason.  A solver lists
 the checks it is known to fail in a class attribute ``expected_failures: dict[str, str]``
 (check name -> reason); those are reported as ``xfail`` (``xpass`` if they pass after all).
@@ -45,7 +45,7 @@ Outcome = Literal["pass", "fail", "skip", "xfail", "xpass"]
 
 
 @dataclass(frozen=True)
-class CheckResult:
+class ConformanceResult:
     """The outcome of one check: ``pass``, ``fail``, ``skip``, ``xfail`` or ``xpass``."""
 
     check: str
@@ -69,7 +69,7 @@ class CheckResult:
 class SolverCheckError(AssertionError):
     """At least one check failed; ``results`` holds every outcome."""
 
-    def __init__(self, solver: str, results: list[CheckResult]) -> None:
+    def __init__(self, solver: str, results: list[ConformanceResult]) -> None:
         self.results = results
         failed = [r for r in results if r.failed]
         lines = [f"{r.check}: {r.reason}" for r in failed]
@@ -97,13 +97,15 @@ def select_checks(select: Iterable[str] | str | None = None) -> list[Check]:
     return [c for c in checks if chosen(c.name)]
 
 
-def run_check(check: Check, solver: SolverSpec, xfail_reason: str | None = None) -> CheckResult:
-    """Run one check and turn its outcome into a :class:`CheckResult` (never raises)."""
+def run_check(
+    check: Check, solver: SolverSpec, xfail_reason: str | None = None
+) -> ConformanceResult:
+    """Run one check and turn its outcome into a :class:`ConformanceResult` (never raises)."""
     t0 = time.perf_counter()
     try:
         check(solver)
     except SkipCheck as exc:
-        return CheckResult(check.name, "skip", str(exc), time.perf_counter() - t0)
+        return ConformanceResult(check.name, "skip", str(exc), time.perf_counter() - t0)
     except Exception as exc:  # noqa: BLE001 - a crashing solver is a failed check
         if isinstance(exc, AssertionError):
             reason = str(exc) or "assertion failed"
@@ -113,12 +115,12 @@ def run_check(check: Check, solver: SolverSpec, xfail_reason: str | None = None)
         outcome: Outcome = "xfail" if xfail_reason is not None else "fail"
         if xfail_reason is not None:
             reason = f"{xfail_reason} [{reason}]"
-        return CheckResult(check.name, outcome, reason, time.perf_counter() - t0)
+        return ConformanceResult(check.name, outcome, reason, time.perf_counter() - t0)
     if xfail_reason is not None:
-        return CheckResult(
+        return ConformanceResult(
             check.name, "xpass", f"expected to fail: {xfail_reason}", time.perf_counter() - t0
         )
-    return CheckResult(check.name, "pass", "", time.perf_counter() - t0)
+    return ConformanceResult(check.name, "pass", "", time.perf_counter() - t0)
 
 
 def check_solver(
@@ -126,8 +128,8 @@ def check_solver(
     *,
     checks: Iterable[str] | str | None = None,
     on_fail: Literal["raise", "return"] = "raise",
-    callback: Callable[[CheckResult], None] | None = None,
-) -> list[CheckResult]:
+    callback: Callable[[ConformanceResult], None] | None = None,
+) -> list[ConformanceResult]:
     """Run the conformance checks on ``solver`` (a registry name, a class or an instance).
 
     ``checks`` keeps only the named checks, or those whose name contains a given substring.
@@ -211,7 +213,7 @@ def parametrize_solver_checks(
 
 __all__ = [
     "Check",
-    "CheckResult",
+    "ConformanceResult",
     "SkipCheck",
     "SolverCheckError",
     "all_checks",

@@ -20,11 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from mpsbench.config import FlowPhysics, Inflow, Models, Region, TimeStepping
-from mpsbench.kernels import WEIGHTS
-from mpsbench.operators import GRADIENTS, LAPLACIANS
-from mpsbench.particles import Box, Kind, Particles
-from mpsbench.protocol import (
+from mpsbench.physics.config import FlowPhysics, Inflow, Models, Region, TimeStepping
+from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+from mpsbench.physics.particles import Box, Kind, Particles
+from mpsbench.physics.weights import WEIGHTS
+from mpsbench.run.protocol import (
     Capabilities,
     Problem,
     Solver,
@@ -231,12 +231,13 @@ def check_api_shape(make: Factory, caps: Capabilities) -> None:
         "diagnostics",
     )
     missing = [m for m in members if not hasattr(s, m)]
-    assert not missing, f"solver lacks {', '.join(missing)} (mpsbench.protocol.Solver)"
-    assert isinstance(s, Solver), "solver is not an instance of mpsbench.protocol.Solver"
+    assert not missing, f"solver lacks {', '.join(missing)} (mpsbench.run.protocol.Solver)"
+    assert isinstance(s, Solver), "solver is not an instance of mpsbench.run.protocol.Solver"
     assert isinstance(s.name, str) and s.name, f"name must be a non-empty str, got {s.name!r}"
     assert isinstance(s.version, str), f"version must be a str, got {type(s.version).__name__}"
     assert isinstance(s.capabilities, Capabilities), (
-        f"capabilities must be mpsbench.protocol.Capabilities, got {type(s.capabilities).__name__}"
+        "capabilities must be mpsbench.run.protocol.Capabilities, got "
+        f"{type(s.capabilities).__name__}"
     )
     for f in dataclasses.fields(Capabilities):
         value = getattr(s.capabilities, f.name)
@@ -401,7 +402,7 @@ def check_capabilities_honoured(make: Factory, caps: Capabilities) -> None:
         if gaps:
             wrong.append(
                 f"{label}: not declared ({'; '.join(gaps)}) but setup() did not raise "
-                "mpsbench.protocol.UnsupportedProblem"
+                "mpsbench.run.protocol.UnsupportedProblem"
             )
     assert not wrong, "; ".join(wrong)
 
@@ -548,7 +549,7 @@ def check_particle_count(make: Factory, caps: Capabilities, n_steps: int = 20) -
 
 def check_divergence_reported(make: Factory, caps: Capabilities, factor: float = 20.0) -> None:
     """A run with a huge fixed dt ends as status 'diverged' with a reason, not an exception."""
-    from mpsbench.runner import run
+    from mpsbench.run.runner import run
 
     problem = _flow_problem(caps)
     dt = _fixed_dt(make, problem, factor)

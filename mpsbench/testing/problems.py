@@ -1,7 +1,7 @@
 """Small problems for the conformance kit and the backend tests (a few hundred particles each).
 
 Every builder is deterministic (seeded jitter and velocities) and returns a fresh
-:class:`~mpsbench.protocol.Problem`, so two calls give bitwise identical inputs.  Units are SI;
+:class:`~mpsbench.run.protocol.Problem`, so two calls give bitwise identical inputs.  Units are SI;
 the defaults describe water-like particles at l0 = 1 cm.
 """
 
@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from mpsbench.config import (
+from mpsbench.physics.config import (
     DiffusionPhysics,
     FlowPhysics,
     Inflow,
@@ -21,9 +21,9 @@ from mpsbench.config import (
     TimeStepping,
     WallMotion,
 )
-from mpsbench.operators import lattice_pairs
-from mpsbench.particles import Box, Particles, block, jitter, tank, wall_layers
-from mpsbench.protocol import Problem
+from mpsbench.physics.operators import lattice_pairs
+from mpsbench.physics.particles import Box, Particles, block, jitter, tank, wall_layers
+from mpsbench.run.protocol import Problem
 
 G = 9.81  # m/s^2
 
@@ -105,7 +105,7 @@ def periodic_flow_problem(
 
     ``velocity`` > 0 gives every particle a seeded random velocity with components uniform in
     [-velocity, velocity] plus a uniform drift (velocity/2, -velocity/4), so the total momentum
-    is not zero.  ``physics`` overrides :class:`~mpsbench.config.FlowPhysics` fields.
+    is not zero.  ``physics`` overrides :class:`~mpsbench.physics.config.FlowPhysics` fields.
     """
     p, box = periodic_lattice(n_side, l0, amplitude, seed, squeeze)
     if velocity:
@@ -193,7 +193,7 @@ def channel_problem(
     """An x-periodic channel of ``ny`` fluid rows between a floor and a lid (no gravity).
 
     With ``top_velocity`` the lid rows carry ``wall_tag`` 1 and a
-    :class:`~mpsbench.config.WallMotion` moves them (Couette flow).
+    :class:`~mpsbench.physics.config.WallMotion` moves them (Couette flow).
     """
     length = nx * l0
     height = ny * l0

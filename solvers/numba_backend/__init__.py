@@ -6,7 +6,7 @@ the install command, so the solver registry lists ``numba`` as unavailable with 
 * :mod:`.solver`: :class:`NumbaSolver`, the same models, boundary conventions and order of
   operations as the reference backend (they agree to rounding: tests/test_numba_agreement.py).
 * :mod:`.cells`: cell-list builds (CSR rows in both directions, half lists with each pair once,
-  a half pair list equal to :func:`mpsbench.neighbours.build_pairs`), and
+  a half pair list equal to :func:`mpsbench.physics.neighbours.build_pairs`), and
   :class:`.cells.CellNeighbourList` (skin upkeep, a sub-list at the smaller radius).
 * :mod:`.pairs`: the WC-MPS step on half lists (each pair evaluated once, two per-chunk
   accumulators so that the result does not depend on the thread count): the solver's default.

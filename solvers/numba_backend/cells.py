@@ -2,7 +2,8 @@
 
 Geometry of a box is passed to the compiled code as one (2,) float64 array ``period``: the period
 L of each periodic axis and 0.0 on free axes (:func:`box_period`).  Separations follow
-:meth:`mpsbench.particles.Box.minimum_image` bit for bit: ``dx = r_j - r_i``, then on a periodic
+:meth:`mpsbench.physics.particles.Box.minimum_image` bit for bit: ``dx = r_j - r_i``, then on a
+periodic
 axis ``dx - L * rint(dx / L)``.
 
 Cells are at least ``cutoff / reach`` wide (``reach`` = 2 by default), so every neighbour of a
@@ -36,9 +37,9 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
-from mpsbench.kernels import SUPPORT_RTOL
-from mpsbench.neighbours import PairList
-from mpsbench.particles import Box
+from mpsbench.physics.neighbours import PairList
+from mpsbench.physics.particles import Box
+from mpsbench.physics.weights import SUPPORT_RTOL
 
 from ._jit import kernel, pick
 
@@ -522,7 +523,7 @@ def csr_to_pairs(csr: CSRNeighbours, pos: FloatArray) -> PairList:
 
 
 def build_pairs_cells(pos: FloatArray, cutoff: float, box: Box | None = None) -> PairList:
-    """Same result as :func:`mpsbench.neighbours.build_pairs`, from the cell list."""
+    """Same result as :func:`mpsbench.physics.neighbours.build_pairs`, from the cell list."""
     pos = _as_pos(pos)
     if len(pos) < 2:
         if not cutoff > 0:

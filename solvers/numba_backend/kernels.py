@@ -7,7 +7,8 @@ and the result does not depend on the number of threads.  Separations ``dx = r_j
 positions in each kernel; weights are evaluated inline and are zero beyond the kernel's own
 ``re``, so one list built at ``r_max + skin`` serves every radius.
 
-Formulas are those of :mod:`mpsbench.operators` (method.md sections 2-5, D_s = 2) and agree with
+Formulas are those of :mod:`mpsbench.physics.operators` (method.md sections 2-5, D_s = 2) and
+agree with
 them to rounding (per-particle summation order differs).  Integer codes select models:
 
 * weight ``wcode``: :data:`WEIGHT_CODES` (``wf1`` = 1, ``wf2`` = 2);
@@ -27,11 +28,12 @@ Conventions: ``offsets, nbr, pos, period`` come first (:mod:`.cells`); ``out`` a
 in (no allocation in the hot path) and also returned; ``mask`` arguments are boolean
 per-particle arrays: a particle whose mask is false neither receives nor contributes (the
 reference backend leaves dummy particles out of the pressure gradient this way); ``kind`` is
-the int8 :class:`mpsbench.particles.Kind` array (0 = fluid).  A coincident pair (r = 0)
+the int8 :class:`mpsbench.physics.particles.Kind` array (0 = fluid).  A coincident pair (r = 0)
 contributes nothing (the reference would produce inf/NaN for it).  Units follow the inputs (SI
 in the solvers).
 
-The support is closed under rounding exactly as in :mod:`mpsbench.kernels`: a pair counts when
+The support is closed under rounding exactly as in :mod:`mpsbench.physics.weights`: a pair counts
+when
 ``0 < r <= re (1 + SUPPORT_RTOL)``, and W, W', W'' are evaluated at ``min(r, re)`` (divisions by
 r use r itself, as the numpy models do).  On a square lattice with an integer r_e/l0 about half
 of the neighbours at r_e sit a rounding error outside it; W' of wf1 is not zero there, so
@@ -43,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from mpsbench.kernels import SUPPORT_RTOL
+from mpsbench.physics.weights import SUPPORT_RTOL
 
 from ._jit import kernel
 from .cells import half_width, min_image
@@ -55,7 +57,8 @@ WEIGHT_CODES = {"wf1": 1, "wf2": 2}
 LAPLACIAN_CODES = {"koshizuka-oka": 1, "khayyer-gotoh": 2, "xu-jin": 3, "xu-jin-analytic": 4}
 GRADIENT_CODES = {"pgm1": 1, "pgm2": 2, "pgm3": 3}
 
-# mpsbench.particles.Kind as plain ints for the kernels (checked in tests/test_numba_kernels.py)
+# mpsbench.physics.particles.Kind as plain ints for the kernels
+# (checked in tests/test_numba_kernels.py)
 FLUID = 0
 WALL = 1
 DUMMY = 2

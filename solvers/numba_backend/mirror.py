@@ -6,7 +6,7 @@ point of the kernel-weighted linear least-squares fit to the fluid particles wit
 for a linear field), and the boundary particle gets u_b = 2 u_wall - u_f.  Where the fit is
 ill-posed (fewer than three data points, or a moment matrix with |det| <= 1e-8 den^3) the Shepard
 average is used; without any fluid neighbour the prescribed velocity is kept.  See
-:func:`mpsbench.solvers.reference.boundaries.mirror_velocity` for the reasoning.
+:func:`mpsbench.physics.boundaries.mirror_velocity` for the reasoning.
 
 Fluid particles near each mirror point come from one cell-list build over the fluid positions
 and the mirror points together, with fluid-fluid and mirror-mirror pairs left out (rigid groups
@@ -20,9 +20,9 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
-from mpsbench.particles import Box, Particles
+from mpsbench.physics.boundaries import extrapolate_through_wall, mirror_points
+from mpsbench.physics.particles import Box, Particles
 
-from ..reference.boundaries import extrapolate_through_wall, mirror_points
 from ._jit import kernel, pick
 from .cells import CellNeighbourList, box_period, build_csr, half_width, min_image
 from .kernels import _w_in

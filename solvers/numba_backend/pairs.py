@@ -14,7 +14,7 @@ the same sums); it scales to two threads, the machines this project targets.  Pe
 buffers are zeroed inside the kernels.
 
 Formulas, masks and the closed support are those of :mod:`.kernels` (and so of
-:mod:`mpsbench.operators` and the reference backend); only the order of the sums differs.
+:mod:`mpsbench.physics.operators` and the reference backend); only the order of the sums differs.
 """
 
 from __future__ import annotations

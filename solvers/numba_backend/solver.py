@@ -35,13 +35,13 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from mpsbench.config import DiffusionPhysics, FlowPhysics
-from mpsbench.kernels import get_weight
-from mpsbench.operators import lattice_constants
-from mpsbench.particles import Kind, Particles
-from mpsbench.protocol import Capabilities, Problem, SolverBase
+from mpsbench.physics.boundaries import InflowBoundary, carry, update_open_boundaries
+from mpsbench.physics.config import DiffusionPhysics, FlowPhysics
+from mpsbench.physics.operators import lattice_constants
+from mpsbench.physics.particles import Kind, Particles
+from mpsbench.physics.weights import get_weight
+from mpsbench.run.protocol import Capabilities, Problem, SolverBase
 
-from ..reference.boundaries import InflowBoundary, carry, update_open_boundaries
 from . import kernels, pairs, steps
 from .cells import CellNeighbourList, CSRNeighbours, box_period, build_csr
 from .mirror import mirror_velocity

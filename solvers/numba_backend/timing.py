@@ -17,10 +17,10 @@ from collections.abc import Callable
 import numba
 import numpy as np
 
-from mpsbench import operators as ops
-from mpsbench.kernels import get_weight
-from mpsbench.neighbours import build_pairs
-from mpsbench.particles import Box
+from mpsbench.physics import operators as ops
+from mpsbench.physics.neighbours import build_pairs
+from mpsbench.physics.particles import Box
+from mpsbench.physics.weights import get_weight
 
 from . import cells, kernels
 

@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from mpsbench.kernels import WeightFunction
-from mpsbench.neighbours import PairList, build_pairs
-from mpsbench.particles import Box, Kind, Particles
+from mpsbench.physics.neighbours import PairList, build_pairs
+from mpsbench.physics.particles import Box, Kind, Particles
+from mpsbench.physics.weights import WeightFunction
 
 FloatArray = NDArray[np.float64]
 

@@ -21,14 +21,24 @@ import numpy as np
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from mpsbench.config import DiffusionPhysics, FlowPhysics
-from mpsbench.kernels import get_weight
-from mpsbench.neighbours import PairList, build_pairs
-from mpsbench.operators import get_gradient, get_laplacian, lattice_constants, number_density
-from mpsbench.particles import Kind, Particles
-from mpsbench.protocol import Capabilities, Problem, SolverBase
+from mpsbench.physics.boundaries import (
+    InflowBoundary,
+    carry,
+    mirror_velocity,
+    update_open_boundaries,
+)
+from mpsbench.physics.config import DiffusionPhysics, FlowPhysics
+from mpsbench.physics.neighbours import PairList, build_pairs
+from mpsbench.physics.operators import (
+    get_gradient,
+    get_laplacian,
+    lattice_constants,
+    number_density,
+)
+from mpsbench.physics.particles import Kind, Particles
+from mpsbench.physics.weights import get_weight
+from mpsbench.run.protocol import Capabilities, Problem, SolverBase
 
-from .boundaries import InflowBoundary, carry, mirror_velocity, update_open_boundaries
 from .neighbours import SkinnedPairs
 
 FloatArray = NDArray[np.float64]

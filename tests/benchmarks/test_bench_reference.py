@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mpsbench.particles import Kind
-from mpsbench.protocol import make_solver
+from mpsbench.physics.particles import Kind
+from mpsbench.run.protocol import make_solver
 from mpsbench.testing import problems
 
 STEPS = 20  # consecutive steps per round

@@ -4,7 +4,7 @@ Run with ``pytest tests/benchmarks --benchmark-only -k runner``.  The runner che
 for divergence (finite state, fluid speed, particles leaving the box) and serves the probes;
 on a fast backend and a small problem that bookkeeping can cost as much as the step.  Two
 benchmarks on the same numba diffusion problem (6,400 particles, periodic unit square,
-l0 = 1/80): ``bare`` calls ``step(dt)`` in a loop, ``runner`` lets :func:`mpsbench.runner.run`
+l0 = 1/80): ``bare`` calls ``step(dt)`` in a loop, ``runner`` lets :func:`mpsbench.run.runner.run`
 drive the same number of steps (its set-up included, about 10 ms).  Their ratio is the
 runner's overhead; ``extra_info`` holds the microseconds per step of each.
 """
@@ -15,8 +15,8 @@ from typing import Any
 
 import pytest
 
-from mpsbench.protocol import make_solver
-from mpsbench.runner import run
+from mpsbench.run.protocol import make_solver
+from mpsbench.run.runner import run
 
 pytest.importorskip("numba")
 

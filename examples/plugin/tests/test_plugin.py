@@ -17,12 +17,12 @@ from __future__ import annotations
 import pytest
 from mpsbench_example.solver import ExampleSolver
 
-from mpsbench.kernels import get_weight
-from mpsbench.neighbours import build_pairs
-from mpsbench.operators import KoshizukaOka, get_laplacian, lattice_constants, lattice_pairs
-from mpsbench.plugin_testing import run_case
-from mpsbench.protocol import SOLVERS
+from mpsbench.physics.neighbours import build_pairs
+from mpsbench.physics.operators import KoshizukaOka, get_laplacian, lattice_constants, lattice_pairs
+from mpsbench.physics.weights import get_weight
+from mpsbench.run.protocol import SOLVERS
 from mpsbench.testing import parametrize_solver_checks
+from mpsbench.testing.plugins import run_case
 
 
 def test_entry_points_are_installed():

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mpsbench.operators import LaplacianModel
+from mpsbench.physics.operators import LaplacianModel
 
 
 class LocalKoshizukaOka(LaplacianModel):

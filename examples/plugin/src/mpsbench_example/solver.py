@@ -1,6 +1,6 @@
 """``example``: a solver backend that wraps mpsbench's reference backend and runs ko-local.
 
-It shows the protocol a backend implements.  :class:`~mpsbench.protocol.SolverBase` keeps the
+It shows the protocol a backend implements.  :class:`~mpsbench.run.protocol.SolverBase` keeps the
 bookkeeping (time, step count, status, counters) and checks the declared capabilities in
 ``setup``; a backend supplies ``_setup``, ``_advance``, ``stable_dt`` and ``state``.  Here each
 of them hands over to a ReferenceSolver, as a wrapper around an external code would.
@@ -16,7 +16,7 @@ import dataclasses
 
 from mpsbench.solvers.reference import ReferenceSolver
 
-from mpsbench.protocol import Capabilities, SolverBase
+from mpsbench.run.protocol import Capabilities, SolverBase
 
 
 class ExampleSolver(SolverBase):

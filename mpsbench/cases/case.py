@@ -1,0 +1,241 @@
+"""Declarative validation cases and their registry.
+
+A case names its parameters (with defaults, units and allowed values), its tiers (parameter
+grids), how to run one parameter set on a solver, its metrics, the checks that decide pass or
+fail, its tables and its figures.  The study machinery
+(:mod:`mpsbench.results.sweep`) expands the grid
+and runs it; the reporting (:mod:`mpsbench.results.case_report`) writes the output folder.
+
+Built-in cases live in :mod:`mpsbench.validations`; plugins add cases through the
+``mpsbench.cases`` entry-point group (the object must be a :class:`Case` instance).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mpsbench.errors import ConfigError
+from mpsbench.registry import Registry
+from mpsbench.run.runner import RunResult
+
+TIERS = ("smoke", "quick", "paper")
+
+
+@dataclass(frozen=True)
+class Param:
+    """A named case parameter.  ``kind`` is float, int, str or bool; ``unit`` is documentation."""
+
+    name: str
+    default: Any
+    help: str = ""
+    unit: str = ""
+    kind: type = float
+    choices: tuple[Any, ...] | None = None
+    minimum: float | None = None
+    exclusive_minimum: bool = False
+    maximum: float | None = None
+
+    def allowed(self) -> str:
+        if self.choices is not None:
+            return "one of " + ", ".join(str(c) for c in self.choices)
+        bounds = []
+        if self.minimum is not None:
+            bounds.append(f"{'>' if self.exclusive_minimum else '>='} {self.minimum:g}")
+        if self.maximum is not None:
+            bounds.append(f"<= {self.maximum:g}")
+        text = f"a {self.kind.__name__}"
+        return f"{text} {' and '.join(bounds)}" if bounds else text
+
+    def parse(self, text: str) -> Any:
+        """Convert text from ``--set key=value`` (or a TOML value) and validate it."""
+        value: Any = text
+        if isinstance(text, str):
+            try:
+                if self.kind is bool:
+                    low = text.strip().lower()
+                    if low not in ("true", "false", "1", "0", "on", "off", "yes", "no"):
+                        raise ValueError(text)
+                    value = low in ("true", "1", "on", "yes")
+                elif self.kind is float:
+                    value = _parse_float(text)
+                elif self.kind is int:
+                    value = int(text)
+                else:
+                    value = text.strip()
+            except ValueError:
+                raise ConfigError(
+                    f"parameter {self.name} = {text!r} is not allowed: {self.allowed()}"
+                ) from None
+        return self.check(value)
+
+    def check(self, value: Any) -> Any:
+        bad = ConfigError(f"parameter {self.name} = {value!r} is not allowed: {self.allowed()}")
+        if self.kind is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if self.kind is float and not (isinstance(value, float) and math.isfinite(value)):
+            raise bad
+        if self.kind is int and (not isinstance(value, int) or isinstance(value, bool)):
+            raise bad
+        if self.kind is bool and not isinstance(value, bool):
+            raise bad
+        if self.kind is str and not isinstance(value, str):
+            raise bad
+        if self.choices is not None and value not in self.choices:
+            raise bad
+        if self.minimum is not None:
+            if value < self.minimum or (self.exclusive_minimum and value == self.minimum):
+                raise bad
+        if self.maximum is not None and value > self.maximum:
+            raise bad
+        return value
+
+
+def _parse_float(text: str) -> float:
+    """Floats, plus simple fractions such as ``1/40`` (handy for spacings)."""
+    text = text.strip()
+    if "/" in text:
+        num, _, den = text.partition("/")
+        return float(num) / float(den)
+    return float(text)
+
+
+@dataclass
+class CaseRun:
+    """What one run of a case produced: the solver run(s), scalar metrics and arrays for plots."""
+
+    metrics: dict[str, Any]
+    results: list[RunResult] = field(default_factory=list)
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass
+class CaseCheck:
+    """One pass/fail decision of a case: ``passed`` is None when the data to decide is missing."""
+
+    name: str
+    passed: bool | None
+    detail: str
+
+
+Grid = dict[str, Sequence[Any]]
+
+
+class Case:
+    """Base class for validation cases; subclasses set the attributes and implement ``execute``."""
+
+    name: str = ""
+    title: str = ""
+    description: str = ""
+    params: tuple[Param, ...] = ()
+    tiers: dict[str, list[Grid]] = {}
+    metrics: dict[str, str] = {}  # metric column -> description (with unit)
+    # How ``mpsbench compare`` holds a metric against a baseline: metric -> (direction, rtol),
+    # direction "lower" | "higher" (which way is better), "equal" (any change beyond rtol is a
+    # regression) or "info" (shown, never a regression).  Metrics not listed get the defaults of
+    # :func:`mpsbench.results.compare.metric_rule` (error-like names: lower, rtol 0.05; timings:
+    # info).
+    compare: dict[str, tuple[str, float]] = {}
+    # The table shown in summary.md and first in index.html (default: the first of ``tables``).
+    headline: str = ""
+    # Where the case comes in reports and in ``validate all`` (lower first; equal: by name).
+    # The built-ins use 10, 20, ...; a plugin case without one comes after them.
+    order: float = 1000.0
+
+    # ---- parameters
+    def param(self, name: str) -> Param:
+        for p in self.params:
+            if p.name == name:
+                return p
+        raise ConfigError(
+            f"case {self.name!r} has no parameter {name!r}; known: "
+            + ", ".join(p.name for p in self.params)
+        )
+
+    def defaults(self) -> dict[str, Any]:
+        return {p.name: p.default for p in self.params}
+
+    def expand(
+        self, tier: str, overrides: dict[str, Sequence[Any]] | None = None
+    ) -> list[dict[str, Any]]:
+        """All parameter sets of a tier; ``overrides`` replace a parameter's values in each grid."""
+        if tier not in self.tiers:
+            raise ConfigError(f"tier = {tier!r} is not allowed: one of {', '.join(self.tiers)}")
+        overrides = overrides or {}
+        for key in overrides:
+            self.param(key)
+        out: list[dict[str, Any]] = []
+        seen: set[tuple[Any, ...]] = set()
+        for grid in self.tiers[tier]:
+            merged = {k: list(v) for k, v in grid.items()}
+            merged.update({k: list(v) for k, v in overrides.items()})
+            keys = list(merged)
+            for combo in itertools.product(*(merged[k] for k in keys)):
+                params = self.defaults()
+                params.update(dict(zip(keys, combo, strict=True)))
+                params = {k: self.param(k).check(v) for k, v in params.items()}
+                sig = tuple(sorted((k, repr(v)) for k, v in params.items()))
+                if sig not in seen:
+                    seen.add(sig)
+                    out.append(params)
+        return out
+
+    # ---- to implement
+    def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
+        raise NotImplementedError
+
+    def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
+        return []
+
+    def tables(self, records: list[dict[str, Any]]) -> dict[str, Any]:
+        """Named pandas DataFrames written as CSV and Markdown."""
+        return {}
+
+    def figures(self, records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]],
+                outdir: Path) -> list[Path]:
+        """Write PNG figures into ``outdir``; ``arrays(run_id)`` loads a run's saved arrays."""
+        return []
+
+    def findings(self, records: list[dict[str, Any]]) -> str:
+        """Plain-word Markdown: which model won where, and by how much."""
+        return ""
+
+
+def _validate_case(obj: Any) -> None:
+    if not isinstance(obj, Case):
+        raise TypeError(
+            f"a case entry must be a mpsbench.cases.Case instance, got {type(obj).__name__}"
+        )
+    if not obj.name or not obj.tiers:
+        raise TypeError("a case needs a name and at least one tier")
+
+
+CASES: Registry[Case] = Registry("case", group="mpsbench.cases", validate=_validate_case)
+"""Every case, built-in or plugin, comes through the ``mpsbench.cases`` entry-point group (the
+built-ins are declared in mpsbench's own pyproject.toml)."""
+
+
+def case_order(names: list[str]) -> list[str]:
+    """Case names in report order: by each case's ``order`` (built-ins first), then name.
+
+    A case that cannot be loaded sorts as a plugin case without an ``order`` (its error is
+    reported where it is used).
+    """
+
+    def key(name: str) -> tuple[float, str]:
+        try:
+            return (float(get_case(name).order), name)
+        except Exception:  # noqa: BLE001 - a broken plugin case still gets listed
+            return (float(Case.order), name)
+
+    return sorted(names, key=key)
+
+
+def get_case(name: str | Case) -> Case:
+    return CASES.get(name) if isinstance(name, str) else name

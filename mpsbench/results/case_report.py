@@ -1,0 +1,185 @@
+"""Write a case's output folder: results, tables, figures, checks and a plain-word report.
+
+Layout of a case folder::
+
+    results.csv, results.json   one row per run (common columns + parameters + metrics)
+    tables/<name>.csv|.md       the case's tables
+    figures/<name>.png          the case's figures
+    checks.json                 pass/fail of each of the case's checks
+    findings.md                 the case's findings in plain words (also in report.md)
+    report.md                   findings in plain words, checks, tables, figure links
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from mpsbench.cases import Case, CaseCheck
+from mpsbench.results.records import COMMON_COLUMNS, atomic_write_text, load_arrays
+
+
+def records_frame(records: list[dict[str, Any]], case: Case | None = None) -> pd.DataFrame:
+    """Records as a DataFrame with the common columns first, then parameters, then the rest."""
+    df = pd.DataFrame.from_records(records)
+    if df.empty:
+        return df
+    first = [c for c in COMMON_COLUMNS if c in df.columns]
+    params = [p.name for p in case.params if p.name in df.columns] if case else []
+    rest = [c for c in df.columns if c not in first and c not in params]
+    return df[first + params + rest]
+
+
+def markdown_table(df: pd.DataFrame, floatfmt: str = ".4g") -> str:
+    if df.empty:
+        return "_(no data)_\n"
+    return str(df.to_markdown(floatfmt=floatfmt)) + "\n"
+
+
+@dataclass
+class Rendered:
+    """What :func:`render_case_outputs` wrote for one set of records (a case for one solver,
+    or a case across all solvers), or what an earlier render left on disk."""
+
+    records: list[dict[str, Any]]
+    checks: list[CaseCheck]
+    tables: dict[str, pd.DataFrame]
+    figures: list[Path]
+    findings: str
+    folder: Path
+    headline: str = ""
+
+    @classmethod
+    def from_disk(cls, folder: Path, records: list[dict[str, Any]]) -> Rendered:
+        """What an earlier render left in ``folder`` (used when the case's code is unavailable)."""
+        checks: list[CaseCheck] = []
+        try:
+            raw = json.loads((folder / "checks.json").read_text())
+            checks = [CaseCheck(str(c["name"]), c.get("passed"), str(c.get("detail", "")))
+                      for c in raw]
+        except (OSError, ValueError, TypeError, KeyError):
+            pass
+        tables = {p.stem: pd.read_csv(p, index_col=0)
+                  for p in sorted((folder / "tables").glob("*.csv"))}
+        figures = sorted((folder / "figures").glob("*.png"))
+        path = folder / "findings.md"
+        findings = path.read_text() if path.exists() else ""
+        return cls(records, checks, tables, figures, findings, folder)
+
+    @property
+    def completed(self) -> int:
+        return sum(1 for r in self.records if r.get("status") == "completed")
+
+    @property
+    def failures(self) -> list[str]:
+        """Why this set fails (empty when it passes)."""
+        out = [f"check failed: {c.name}" for c in self.checks if c.passed is False]
+        if not self.records:
+            out.append("no runs")
+        elif not self.completed:
+            out.append("no run completed")
+        return out
+
+    @property
+    def passed(self) -> bool:
+        return not self.failures
+
+    def headline_table(self) -> tuple[str, pd.DataFrame] | None:
+        if not self.tables:
+            return None
+        name = self.headline if self.headline in self.tables else next(iter(self.tables))
+        return name, self.tables[name]
+
+
+def write_case_outputs(
+    case: Case, records: list[dict[str, Any]], outdir: str | Path
+) -> list[CaseCheck]:
+    """Write results, tables, figures, checks and report.md for one case; return the checks."""
+    return render_case_outputs(case, records, outdir).checks
+
+
+def render_case_outputs(
+    case: Case, records: list[dict[str, Any]], outdir: str | Path, *,
+    arrays_dir: str | Path | None = None,
+) -> Rendered:
+    """Like :func:`write_case_outputs` but return everything written.
+
+    ``arrays_dir`` is the folder whose ``runs/`` holds the runs' arrays (default ``outdir``);
+    the per-solver folders of ``mpsbench validate all`` read the arrays of their case folder.
+    Besides the files listed in the module docstring, writes ``findings.md`` (the case's
+    plain-word findings) so a report can be re-rendered without the case's code.
+    """
+    outdir = Path(outdir)
+    outdir.mkdir(parents=True, exist_ok=True)
+    source = Path(arrays_dir) if arrays_dir is not None else outdir
+    df = records_frame(records, case)
+    df.to_csv(outdir / "results.csv", index=False)
+    atomic_write_text(outdir / "results.json", json.dumps(records, indent=1, default=str))
+
+    tables = case.tables(records) if records else {}
+    tdir = outdir / "tables"
+    tdir.mkdir(exist_ok=True)
+    for name, table in tables.items():
+        table.to_csv(tdir / f"{name}.csv")
+        (tdir / f"{name}.md").write_text(markdown_table(table))
+
+    fdir = outdir / "figures"
+    fdir.mkdir(exist_ok=True)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    figures = case.figures(records, lambda rid: load_arrays(source, rid), fdir) if records else []
+    figures = [Path(f) for f in figures]
+
+    checks = case.checks(records) if records else []
+    atomic_write_text(
+        outdir / "checks.json",
+        json.dumps([{"name": c.name, "passed": c.passed, "detail": c.detail} for c in checks],
+                   indent=1),
+    )
+    findings = case.findings(records) if records else ""
+    (outdir / "findings.md").write_text(findings.strip() + "\n" if findings.strip() else "")
+    (outdir / "report.md").write_text(render_report(case, records, checks, tables, figures, outdir))
+    return Rendered(records, checks, tables, figures, findings, outdir, case.headline)
+
+
+def check_lines(checks: list[CaseCheck]) -> list[str]:
+    mark = {True: "PASS", False: "FAIL", None: "n/a "}
+    return [f"- **{mark[c.passed]}** {c.name}: {c.detail}" for c in checks]
+
+
+def render_report(
+    case: Case, records: list[dict[str, Any]], checks: list[CaseCheck],
+    tables: dict[str, pd.DataFrame], figures: list[Path], outdir: Path,
+) -> str:
+    n = len(records)
+    by_status: dict[str, int] = {}
+    for r in records:
+        by_status[r.get("status", "?")] = by_status.get(r.get("status", "?"), 0) + 1
+    status = ", ".join(f"{v} {k}" for k, v in sorted(by_status.items()))
+    lines = [f"# {case.title or case.name}", "", case.description.strip(), ""]
+    tiers = sorted({str(r.get("tier")) for r in records})
+    solvers = sorted({str(r.get("solver")) for r in records})
+    lines += [f"{n} runs ({status}); tier {', '.join(tiers)}; solver {', '.join(solvers)}.", ""]
+    failed = [r for r in records if r.get("status") != "completed"]
+    if failed:
+        lines += ["Runs that did not complete:", ""]
+        lines += [f"- `{r['run_id']}`: {r.get('status')}: {r.get('reason', '')}"
+                  for r in failed[:20]]
+        lines.append("")
+    findings = case.findings(records) if records else ""
+    if findings:
+        lines += ["## Findings", "", findings.strip(), ""]
+    if checks:
+        lines += ["## Checks", "", *check_lines(checks), ""]
+    for name, table in tables.items():
+        lines += [f"## Table: {name}", "", markdown_table(table), f"(also `tables/{name}.csv`)", ""]
+    if figures:
+        lines += ["## Figures", ""]
+        lines += [f"![{f.stem}]({f.relative_to(outdir).as_posix()})" for f in figures]
+        lines.append("")
+    return "\n".join(lines)

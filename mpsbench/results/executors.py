@@ -1,0 +1,310 @@
+"""Executors: where the runs of a study execute.
+
+An executor takes the runs that are not done yet and yields ``(task, record)`` as each one
+finishes; every record is on disk (written atomically) before it is yielded, so a study that is
+interrupted at any point keeps every finished run and loses none.
+:func:`mpsbench.results.sweep.run_tasks`
+does the skip-if-done bookkeeping and the progress count; the executor only runs.
+
+* :class:`LocalExecutor` -- in-process (``jobs=1``) or a pool of worker processes.
+* :class:`DaskExecutor` -- a ``dask.distributed`` cluster: a scheduler address, an existing
+  ``Client``, or (neither) a local cluster started for the study and closed after it.  Workers
+  compute; the client writes the records, so the workers need no access to the output folder
+  (a remote cluster works), only the same mpsbench (and plugins) installed.
+
+A run that raises inside the case is recorded ``failed`` by
+:func:`mpsbench.results.records.execute_task`
+itself; a worker that dies (killed, out of memory) fails only its own run, with the reason.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import shutil
+import signal
+import sys
+import tempfile
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from pathlib import Path
+from typing import Any
+
+from mpsbench.results.records import (
+    Task,
+    _crashed,
+    atomic_write_bytes,
+    atomic_write_text,
+    execute_task,
+)
+
+FolderFn = Callable[[Task], Path]
+"""Maps a task to the folder whose ``runs/`` receives its record."""
+
+EXECUTORS = ("local", "dask")
+
+
+class ExecutorError(RuntimeError):
+    """An executor could not be started (missing extra, unreachable scheduler)."""
+
+
+class Executor:
+    """Base class: run tasks, write their records, yield ``(task, record)`` as each finishes."""
+
+    name = "base"
+
+    def run(
+        self, tasks: Sequence[Task], folder: FolderFn, env: dict[str, Any]
+    ) -> Iterator[tuple[Task, dict[str, Any]]]:
+        raise NotImplementedError
+
+    def describe(self) -> str:
+        return self.name
+
+    def close(self) -> None:
+        """Release workers or connections (the executor can't be used after)."""
+
+    def __enter__(self) -> Executor:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _write_crash(
+    task: Task, folder: FolderFn, exc: BaseException, env: dict[str, Any]
+) -> dict[str, Any]:
+    rec = _crashed(task, exc, env)
+    runs = Path(folder(task)) / "runs"
+    runs.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(runs / f"{task.run_id}.json", json.dumps(rec, indent=1))
+    return rec
+
+
+class LocalExecutor(Executor):
+    """Runs in this process (``jobs=1``) or in ``jobs`` worker processes on this machine."""
+
+    name = "local"
+
+    def __init__(self, jobs: int = 1) -> None:
+        if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
+            raise ValueError(f"LocalExecutor: jobs = {jobs!r} is not allowed: an integer >= 1")
+        self.jobs = jobs
+
+    def describe(self) -> str:
+        return f"local ({self.jobs} process{'es' if self.jobs > 1 else ''})"
+
+    def run(
+        self, tasks: Sequence[Task], folder: FolderFn, env: dict[str, Any]
+    ) -> Iterator[tuple[Task, dict[str, Any]]]:
+        if self.jobs <= 1 or len(tasks) <= 1:
+            for task in tasks:
+                yield task, execute_task(task, str(folder(task)), env)
+            return
+        # Each worker runs single-threaded numerics; the pool gives the parallelism.
+        pool = ProcessPoolExecutor(max_workers=self.jobs, initializer=_die_with_parent,
+                                   initargs=(os.getpid(),))
+        interrupted = True
+        try:
+            pending: dict[Future[dict[str, Any]], Task] = {
+                pool.submit(execute_task, t, str(folder(t)), env): t for t in tasks
+            }
+            while pending:
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    task = pending.pop(fut)
+                    try:
+                        rec = fut.result()
+                    except Exception as exc:  # noqa: BLE001 - a dead worker fails its run only
+                        rec = _write_crash(task, folder, exc, env)
+                    yield task, rec
+            interrupted = False
+        finally:
+            if interrupted:
+                # Ctrl-C or the consumer stopped: end the workers now rather than let them
+                # finish the runs already handed to them (minutes each for a real case).  A run
+                # cut short leaves no record (writes are atomic) and runs again next time.
+                _terminate_workers(pool)
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _die_with_parent(parent: int) -> None:
+    """In a worker: end when the study process ends, even by SIGKILL (Linux; elsewhere a no-op).
+
+    Without this, workers of a killed study go on with the runs already handed to them.
+    """
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # the parent died before the call: nobody will signal us
+        os._exit(1)
+
+
+def _terminate_workers(pool: ProcessPoolExecutor) -> None:
+    # ProcessPoolExecutor has no public way to stop busy workers before Python 3.14
+    # (terminate_workers); its worker table is the documented-in-source ``_processes``.
+    stop = getattr(pool, "terminate_workers", None)
+    if callable(stop):
+        stop()
+        return
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        if proc.is_alive():
+            proc.terminate()
+
+
+# --------------------------------------------------------------------------- dask
+
+
+def run_detached(task: Task, env: dict[str, Any]) -> tuple[str, bytes | None]:
+    """Run one task in a scratch folder; return the record's JSON text and the arrays (.npz).
+
+    This is what a dask worker executes: it never touches the study's output folder.  The
+    record text is exactly what :func:`~mpsbench.results.records.execute_task` writes, so the client
+    stores byte-for-byte the same record as the local executor would.
+    """
+    env = {**env, "machine": f"{platform.system()} {platform.machine()} {os.cpu_count()} cpu"}
+    scratch = tempfile.mkdtemp(prefix="mpsbench-run-")
+    try:
+        execute_task(task, scratch, env)
+        runs = Path(scratch) / "runs"
+        text = (runs / f"{task.run_id}.json").read_text()
+        npz = runs / f"{task.run_id}.npz"
+        return text, (npz.read_bytes() if npz.exists() else None)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _import_distributed() -> Any:
+    try:
+        import distributed
+    except ImportError:
+        raise ExecutorError(
+            "the dask executor needs dask.distributed: pip install 'mpsbench[dask]'"
+        ) from None
+    return distributed
+
+
+class DaskExecutor(Executor):
+    """Sends every run to a ``dask.distributed`` cluster; the client writes the records.
+
+    ``address``: a scheduler address (``tcp://host:8786``), an existing ``distributed.Client``,
+    or None for a local cluster of ``n_workers`` single-threaded worker processes (default: the
+    number of CPUs) started on first use and closed by :meth:`close`.  ``retries`` re-submits a
+    run whose worker died before its run is recorded ``failed``.
+    """
+
+    name = "dask"
+
+    def __init__(
+        self,
+        address: Any = None,
+        *,
+        n_workers: int | None = None,
+        retries: int = 0,
+        cluster_kwargs: dict[str, Any] | None = None,
+    ) -> None:
+        _import_distributed()
+        if n_workers is not None and (not isinstance(n_workers, int) or n_workers < 1):
+            raise ValueError(f"DaskExecutor: n_workers = {n_workers!r}: an integer >= 1")
+        self.address = address
+        self.n_workers = n_workers
+        self.retries = retries
+        self.cluster_kwargs = cluster_kwargs or {}
+        self._client: Any = None
+        self._cluster: Any = None
+        self._own_client = False
+
+    def describe(self) -> str:
+        if self.address is None:
+            n = self.n_workers or os.cpu_count() or 1
+            return f"dask (local cluster, {n} worker{'s' if n > 1 else ''})"
+        if isinstance(self.address, str):
+            return f"dask (scheduler {self.address})"
+        return "dask (given client)"
+
+    @property
+    def client(self) -> Any:
+        if self._client is None:
+            distributed = _import_distributed()
+            if self.address is None:
+                kwargs = {
+                    "n_workers": self.n_workers or os.cpu_count() or 1,
+                    "threads_per_worker": 1,
+                    "processes": True,
+                    "dashboard_address": ":0",
+                    **self.cluster_kwargs,
+                }
+                self._cluster = distributed.LocalCluster(**kwargs)
+                self._client = distributed.Client(self._cluster)
+                self._own_client = True
+            elif isinstance(self.address, str):
+                try:
+                    self._client = distributed.Client(self.address, timeout="20s")
+                except OSError as exc:
+                    raise ExecutorError(
+                        f"cannot reach the dask scheduler at {self.address!r}: {exc}"
+                    ) from None
+                self._own_client = True
+            else:
+                self._client = self.address
+        return self._client
+
+    def run(
+        self, tasks: Sequence[Task], folder: FolderFn, env: dict[str, Any]
+    ) -> Iterator[tuple[Task, dict[str, Any]]]:
+        if not tasks:
+            return
+        distributed = _import_distributed()
+        client = self.client
+        futures = {
+            client.submit(
+                run_detached, task, env, pure=False, retries=self.retries,
+                key=f"mpsbench-{task.run_id}-{os.urandom(4).hex()}",
+            ): task
+            for task in tasks
+        }
+        try:
+            for fut in distributed.as_completed(list(futures)):
+                task = futures.pop(fut)
+                try:
+                    text, npz = fut.result()
+                except Exception as exc:  # noqa: BLE001 - KilledWorker, lost worker, ...
+                    yield task, _write_crash(task, folder, exc, env)
+                    continue
+                runs = Path(folder(task)) / "runs"
+                runs.mkdir(parents=True, exist_ok=True)
+                if npz is not None:
+                    atomic_write_bytes(runs / f"{task.run_id}.npz", npz)
+                atomic_write_text(runs / f"{task.run_id}.json", text)
+                yield task, json.loads(text)
+        finally:
+            if futures:  # interrupted: do not leave runs queued on a shared cluster
+                client.cancel(list(futures))
+
+    def close(self) -> None:
+        if self._client is not None and self._own_client:
+            self._client.close()
+        if self._cluster is not None:
+            self._cluster.close()
+        self._client = self._cluster = None
+
+
+def make_executor(
+    name: str, *, jobs: int = 1, scheduler: str | None = None
+) -> Executor:
+    """An executor by name: ``local`` (``jobs`` processes) or ``dask`` (``scheduler`` address,
+    or a local cluster of ``jobs`` workers when none is given)."""
+    if name == "local":
+        if scheduler:
+            raise ValueError("a scheduler address only goes with the dask executor")
+        return LocalExecutor(jobs)
+    if name == "dask":
+        return DaskExecutor(scheduler, n_workers=jobs if scheduler is None else None)
+    raise ValueError(f"executor = {name!r} is not allowed: one of {', '.join(EXECUTORS)}")

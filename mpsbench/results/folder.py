@@ -1,0 +1,116 @@
+"""The results folder of ``mpsbench validate all``: all cases, all solvers, one report.
+
+This module writes the folder (calling :mod:`.summary` and :mod:`.html`) and reads it back.
+
+Layout (``OUT`` defaults to ``reports/<YYYYmmdd-HHMM>-<tier>/``)::
+
+    OUT/results.csv, results.json   every record of every case (one per run)
+    OUT/summary.md                  per case and solver: pass/fail, finding, headline table
+    OUT/index.html                  one self-contained page (figures embedded, no network)
+    OUT/figures/<case>/<name>.png   copies of every case figure; with several solvers also
+                                    figures/<case>/<solver>/<name>.png (per-solver figures)
+    OUT/manifest.json               tier, solvers, command, times, environment, unavailable cases
+    OUT/<case>/                     the case folder (runs/, results, tables/, figures/,
+                                    checks.json, findings.md, report.md; see
+                                    mpsbench.results.case_report)
+    OUT/<case>/by-solver/<solver>/  only with several solvers: that solver's tables, figures,
+                                    checks and report (the case folder then compares solvers)
+
+A folder written by ``mpsbench validate CASE`` (a single case folder, ``runs/`` at the top) is a
+results folder too: ``mpsbench report`` renders its summary.md and index.html in place.
+
+Pass/fail rules: :mod:`.sections`.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from mpsbench.results.case_report import Rendered
+from mpsbench.results.html import render_index
+from mpsbench.results.records import COMMON_COLUMNS, atomic_write_text, load_records
+from mpsbench.results.sections import CaseSection
+from mpsbench.results.summary import render_summary
+
+ENV_COLUMNS = ("mpsbench_version", "python", "numpy_version", "machine", "git_commit")
+MANIFEST = "manifest.json"
+
+
+def all_records_frame(records: list[dict[str, Any]], param_names: list[str]) -> pd.DataFrame:
+    """Every record: common columns, then parameters, then metrics, then the environment."""
+    df = pd.DataFrame.from_records(records)
+    if df.empty:
+        return df
+    first = [c for c in COMMON_COLUMNS if c in df.columns]
+    params = [c for c in dict.fromkeys(param_names) if c in df.columns and c not in first]
+    last = [c for c in ENV_COLUMNS if c in df.columns]
+    rest = [c for c in df.columns if c not in first and c not in params and c not in last]
+    return df[first + params + rest + last]
+
+
+def copy_figures(out: Path, sections: list[CaseSection]) -> dict[Path, Path]:
+    """Copy every figure to ``out/figures/<case>/[<solver>/]``; return source -> copy."""
+    copies: dict[Path, Path] = {}
+    for sec in sections:
+        if sec.folder is None or sec.folder.resolve() == out.resolve():
+            continue  # a single-case folder: its figures/ already is the top-level one
+        parts: list[tuple[str, Rendered]] = []
+        several = sec.combined is not None
+        if sec.combined is not None:
+            parts.append(("", sec.combined))
+        parts += [(s.solver if several else "", s.rendered) for s in sec.solvers]
+        for sub, rendered in parts:
+            dest = out / "figures" / sec.name / sub if sub else out / "figures" / sec.name
+            for fig in rendered.figures:
+                if fig.exists():
+                    dest.mkdir(parents=True, exist_ok=True)
+                    shutil.copy2(fig, dest / fig.name)
+                    copies[fig] = dest / fig.name
+    return copies
+
+
+def write_top_level(
+    out: Path, sections: list[CaseSection], manifest: dict[str, Any], param_names: list[str],
+    *, write_results: bool = True,
+) -> bool:
+    """Write results.csv/json, figures/, summary.md and index.html; return True when all pass."""
+    out.mkdir(parents=True, exist_ok=True)
+    records = [r for sec in sections for r in sec.records]
+    if write_results:
+        all_records_frame(records, param_names).to_csv(out / "results.csv", index=False)
+        atomic_write_text(out / "results.json", json.dumps(records, indent=1, default=str))
+    copy_figures(out, sections)
+    atomic_write_text(out / "summary.md", render_summary(sections, manifest, out))
+    atomic_write_text(out / "index.html", render_index(sections, manifest, out))
+    return all(sec.passed for sec in sections)
+
+
+# ---------------------------------------------------------------- reading a folder back
+
+
+def read_manifest(out: Path) -> dict[str, Any]:
+    try:
+        data = json.loads((out / MANIFEST).read_text())
+        return data if isinstance(data, dict) else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def case_folders(out: Path) -> list[tuple[str, Path, list[dict[str, Any]]]]:
+    """(case name, case folder, records) for every case found in a results folder."""
+    found: list[tuple[str, Path, list[dict[str, Any]]]] = []
+    if (out / "runs").is_dir():  # a single-case folder from 'mpsbench validate CASE'
+        records = load_records(out)
+        names = list(dict.fromkeys(str(r.get("case")) for r in records)) or [out.name]
+        return [(names[0], out, records)]
+    for sub in sorted(p for p in out.iterdir() if p.is_dir()):
+        if (sub / "runs").is_dir():
+            records = load_records(sub)
+            name = str(records[0].get("case")) if records else sub.name
+            found.append((name, sub, records))
+    return found

@@ -1,0 +1,265 @@
+"""Run records: a task, its run id, executing it into a record, atomic writes, loading, and the
+environment every record carries.
+
+Output folder layout::
+
+    OUT/runs/<run_id>.json   one record per run (written atomically: temp file + rename)
+    OUT/runs/<run_id>.npz    arrays the case keeps for its figures (profiles, snapshots)
+
+Failed and diverged runs are recorded with their reason.  Every record carries the common columns
+documented in docs/columns.md.  Sweeps over many tasks are :mod:`mpsbench.results.sweep`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import platform
+import re
+import subprocess
+import tempfile
+import time
+import traceback
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import mpsbench
+from mpsbench.cases import get_case
+from mpsbench.run.protocol import Status
+
+COMMON_COLUMNS = (
+    "case", "solver", "solver_version", "tier", "run_id", "status", "reason", "wall_time_s",
+    "particle_steps_per_s", "n_particles", "n_steps",
+)
+
+
+def run_id(
+    case: str,
+    solver: str,
+    params: dict[str, Any],
+    defaults: dict[str, Any] | None = None,
+    always: Iterable[str] = (),
+) -> str:
+    """A readable, filesystem-safe name built from the parameters (plus a short hash).
+
+    With the case's ``defaults`` (in the case's parameter order) the readable part lists the
+    parameters that differ from them or are named in ``always`` (those a study sweeps), in that
+    order, so names stay short and say what the run varies; the hash covers every parameter.
+    """
+    if defaults is not None:
+        keep = set(always)
+        order = [k for k in defaults if k in params] + sorted(set(params) - set(defaults))
+        shown = [k for k in order if k in keep or k not in defaults or params[k] != defaults[k]]
+    else:
+        shown = sorted(params)
+    parts = [case, solver] + [f"{k}={_short(params[k])}" for k in shown]
+    text = "_".join(parts)
+    digest = hashlib.sha1(json.dumps([case, solver, sorted(params.items())], default=str).encode())
+    safe = re.sub(r"[^A-Za-z0-9=.+-]+", "_", text)
+    if len(safe) > 150:
+        safe = safe[:150]
+    return f"{safe}_{digest.hexdigest()[:8]}"
+
+
+def run_ids(
+    case: str, solver: str, param_sets: Sequence[dict[str, Any]], defaults: dict[str, Any]
+) -> list[str]:
+    """Run ids of a set of runs: every parameter the set sweeps is named in each id."""
+    swept = {
+        k for k in {k for p in param_sets for k in p}
+        if len({repr(p.get(k)) for p in param_sets}) > 1
+    }
+    return [run_id(case, solver, p, defaults, swept) for p in param_sets]
+
+
+def _short(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+@dataclass
+class Task:
+    case: str
+    solver: str
+    tier: str
+    params: dict[str, Any]
+    run_id: str
+
+
+def environment() -> dict[str, Any]:
+    """Versions and machine description stored in every record."""
+    return {
+        "mpsbench_version": mpsbench.__version__,
+        "python": platform.python_version(),
+        "numpy_version": np.__version__,
+        "machine": f"{platform.system()} {platform.machine()} {os.cpu_count()} cpu",
+        "git_commit": _git_commit(),
+    }
+
+
+def _git_commit() -> str:
+    here = Path(__file__).resolve().parent
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True, text=True,
+            timeout=5, check=False,
+        )
+        return out.stdout.strip() if out.returncode == 0 else ""
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+def execute_task(task: Task, outdir: str, env: dict[str, Any]) -> dict[str, Any]:
+    """Run one task, write its record (and arrays) atomically, return the record.
+
+    Never raises for a failing run: the record says ``failed`` with the reason.
+    """
+    runs = Path(outdir) / "runs"
+    runs.mkdir(parents=True, exist_ok=True)
+    record: dict[str, Any] = {
+        "case": task.case, "solver": task.solver, "solver_version": "", "tier": task.tier,
+        "run_id": task.run_id, **task.params,
+    }
+    t0 = time.perf_counter()
+    arrays: dict[str, np.ndarray] = {}
+    try:
+        case = get_case(task.case)
+        out = case.execute(dict(task.params), task.solver)
+        results = out.results
+        statuses = [r.status for r in results]
+        status = Status.COMPLETED
+        reason = ""
+        for r in results:
+            if r.status != Status.COMPLETED:
+                status, reason = r.status, r.reason
+                break
+        wall = sum(r.wall_time_s for r in results)
+        psteps = sum(r.particle_steps for r in results)
+        record.update(
+            status=status.value,
+            reason=reason,
+            solver_version=results[0].solver_version if results else "",
+            wall_time_s=round(wall, 4),
+            particle_steps_per_s=round(psteps / wall, 1) if wall > 0 else 0.0,
+            n_particles=max((r.n_particles for r in results), default=0),
+            n_steps=sum(r.n_steps for r in results),
+            n_solver_runs=len(statuses),
+        )
+        record.update({k: _plain(v) for k, v in out.metrics.items()})
+        arrays = out.arrays
+    except Exception as exc:  # noqa: BLE001 - a broken case or solver is recorded, not fatal
+        tb = traceback.extract_tb(exc.__traceback__)
+        where = f" (at {tb[-1].filename}:{tb[-1].lineno})" if tb else ""
+        record.update(
+            status=Status.FAILED.value, reason=f"{type(exc).__name__}: {exc}{where}",
+            wall_time_s=round(time.perf_counter() - t0, 4), particle_steps_per_s=0.0,
+            n_particles=0, n_steps=0,
+        )
+    record["elapsed_s"] = round(time.perf_counter() - t0, 4)
+    record.update(env)
+    if arrays:
+        _atomic_npz(runs / f"{task.run_id}.npz", arrays)
+    atomic_write_text(runs / f"{task.run_id}.json", json.dumps(record, indent=1, default=_plain))
+    return record
+
+
+def _plain(v: Any) -> Any:
+    if isinstance(v, (np.floating, float)):
+        f = float(v)
+        return f if math.isfinite(f) else None
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.bool_):
+        return bool(v)
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    return v
+
+
+def _file_mode() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
+_FILE_MODE = _file_mode()
+
+
+def _atomic_replace(path: Path, fill: Callable[[str], None], suffix: str = ".tmp") -> None:
+    """``fill(tmp)`` writes a temp file beside ``path``, which then replaces ``path`` in one
+    rename: a reader never sees half a file, and a failed write leaves nothing behind."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=suffix)
+    os.close(fd)
+    try:
+        fill(tmp)
+        os.chmod(tmp, _FILE_MODE)  # mkstemp makes 0600; reports are meant to be shared
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically and durably (fsync before the rename)."""
+
+    def fill(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+
+    _atomic_replace(path, fill)
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically: see :func:`atomic_write_bytes`."""
+    atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def _atomic_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
+    # the .npz suffix: savez_compressed appends one to any other file name
+    _atomic_replace(path, lambda tmp: np.savez_compressed(tmp, **arrays),  # type: ignore[arg-type]
+                    suffix=".npz")
+
+
+def load_record(path: Path) -> dict[str, Any] | None:
+    """A record, or None if the file is unreadable (treated as not done)."""
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+    return data if isinstance(data, dict) and "status" in data else None
+
+
+def load_records(outdir: str | Path) -> list[dict[str, Any]]:
+    runs = Path(outdir) / "runs"
+    records = []
+    for path in sorted(runs.glob("*.json")) if runs.is_dir() else []:
+        rec = load_record(path)
+        if rec is not None:
+            records.append(rec)
+    return records
+
+
+def load_arrays(outdir: str | Path, rid: str) -> dict[str, np.ndarray]:
+    path = Path(outdir) / "runs" / f"{rid}.npz"
+    if not path.exists():
+        return {}
+    with np.load(path, allow_pickle=False) as data:
+        return {k: data[k] for k in data.files}
+
+
+def _crashed(task: Task, exc: BaseException, env: dict[str, Any]) -> dict[str, Any]:
+    return {
+        "case": task.case, "solver": task.solver, "solver_version": "", "tier": task.tier,
+        "run_id": task.run_id, **task.params, "status": Status.FAILED.value,
+        "reason": f"worker process died: {type(exc).__name__}: {exc}", "wall_time_s": 0.0,
+        "particle_steps_per_s": 0.0, "n_particles": 0, "n_steps": 0, **env,
+    }

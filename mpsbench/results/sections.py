@@ -1,0 +1,160 @@
+"""Sections of a results folder: a case's records rendered once per solver (and across solvers
+when several ran), with the pass/fail rules, the overview rows and the header line that the
+summary (:mod:`.summary`) and the page (:mod:`.html`) both show.
+
+Pass/fail: a (case, solver) fails when one of its checks fails or none of its runs completed;
+a case fails when one of its solvers fails, or it could not be loaded, planned or rendered.
+"""
+
+from __future__ import annotations
+
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from mpsbench.cases import Case
+from mpsbench.results.case_report import Rendered, render_case_outputs
+
+
+@dataclass
+class SolverSection:
+    solver: str
+    version: str
+    rendered: Rendered
+
+
+@dataclass
+class CaseSection:
+    """A case in the report: one section per solver, plus a cross-solver one with several."""
+
+    name: str
+    title: str = ""
+    description: str = ""
+    folder: Path | None = None
+    records: list[dict[str, Any]] = field(default_factory=list)
+    solvers: list[SolverSection] = field(default_factory=list)
+    combined: Rendered | None = None
+    by_solver: pd.DataFrame | None = None  # with several solvers: metrics side by side
+    error: str = ""
+
+    @property
+    def passed(self) -> bool:
+        return (not self.error and bool(self.solvers)
+                and all(s.rendered.passed for s in self.solvers))
+
+
+def solver_order(records: list[dict[str, Any]]) -> list[str]:
+    return list(dict.fromkeys(str(r.get("solver", "?")) for r in records))
+
+
+def _version(records: list[dict[str, Any]]) -> str:
+    return next((str(r["solver_version"]) for r in records if r.get("solver_version")), "")
+
+
+def render_case(case: Case, records: list[dict[str, Any]], folder: Path) -> CaseSection:
+    """Write a case's outputs (per solver too when there are several) and describe them."""
+    section = CaseSection(case.name, case.title, case.description.strip(), folder, records)
+    if not records:
+        section.error = "no runs were planned for this tier"
+        return section
+    solvers = solver_order(records)
+    if len(solvers) == 1:
+        rendered = render_case_outputs(case, records, folder)
+        section.solvers = [SolverSection(solvers[0], _version(records), rendered)]
+        return section
+    section.combined = render_case_outputs(case, records, folder)
+    section.by_solver = solver_table(case, records)
+    for solver in solvers:
+        recs = [r for r in records if r.get("solver") == solver]
+        out = render_case_outputs(case, recs, folder / "by-solver" / solver, arrays_dir=folder)
+        section.solvers.append(SolverSection(solver, _version(recs), out))
+    return section
+
+
+def solver_table(case: Case, records: list[dict[str, Any]]) -> pd.DataFrame:
+    """The case's metrics (and throughput) per parameter set, one column per solver."""
+    df = pd.DataFrame.from_records(records)
+    metrics = [m for m in [*case.metrics, "particle_steps_per_s"] if m in df.columns]
+    if df.empty or not metrics:
+        return pd.DataFrame()
+    varying = [p.name for p in case.params
+               if p.name in df.columns and df[p.name].astype(str).nunique() > 1]
+    key = varying or ["case"]
+    table = df.set_index([*key, "solver"])[metrics]
+    table = table[~table.index.duplicated()]
+    wide = pd.DataFrame(table.unstack("solver"))
+    wide.columns = pd.Index([f"{col[0]} [{col[1]}]" for col in wide.columns])
+    return wide
+
+
+def case_from_disk(name: str, records: list[dict[str, Any]], folder: Path, why: str) -> CaseSection:
+    """A case section from files an earlier render wrote (the case's code is unavailable)."""
+    section = CaseSection(name, name, f"_(re-rendered from files: {why})_", folder, records)
+    solvers = solver_order(records)
+    if len(solvers) == 1:
+        section.solvers = [SolverSection(solvers[0], _version(records),
+                                         Rendered.from_disk(folder, records))]
+    else:
+        section.combined = Rendered.from_disk(folder, records)
+        for s in solvers:
+            recs = [r for r in records if r.get("solver") == s]
+            rendered = Rendered.from_disk(folder / "by-solver" / s, recs)
+            section.solvers.append(SolverSection(s, _version(recs), rendered))
+    if not records:
+        section.error = "no records"
+    return section
+
+
+def safe_render_case(case: Case, records: list[dict[str, Any]], folder: Path) -> CaseSection:
+    """:func:`render_case`, but a bug in the case's tables/figures/checks fails only that case."""
+    try:
+        return render_case(case, records, folder)
+    except Exception as exc:  # noqa: BLE001 - reported in the section, the other cases go on
+        tb = traceback.extract_tb(exc.__traceback__)
+        where = f" (at {tb[-1].filename}:{tb[-1].lineno})" if tb else ""
+        return CaseSection(case.name, case.title, case.description.strip(), folder, records,
+                           error=f"rendering failed: {type(exc).__name__}: {exc}{where}")
+
+
+def verdict(ok: bool) -> str:
+    return "PASS" if ok else "FAIL"
+
+
+def overview_rows(sections: list[CaseSection]) -> list[dict[str, Any]]:
+    rows = []
+    for sec in sections:
+        if sec.error and not sec.solvers:
+            rows.append({"case": sec.name, "solver": "", "runs": len(sec.records), "completed": 0,
+                         "not completed": 0, "checks passed": "", "result": "FAIL",
+                         "wall time [s]": 0.0})
+            continue
+        for s in sec.solvers:
+            r = s.rendered
+            n_ok = sum(1 for c in r.checks if c.passed)
+            n_dec = sum(1 for c in r.checks if c.passed is not None)
+            rows.append({
+                "case": sec.name, "solver": s.solver, "runs": len(r.records),
+                "completed": r.completed, "not completed": len(r.records) - r.completed,
+                "checks passed": f"{n_ok}/{n_dec}" if r.checks else "(none)",
+                "result": verdict(r.passed and not sec.error),
+                "wall time [s]": round(sum(float(x.get("wall_time_s") or 0) for x in r.records), 1),
+            })
+    return rows
+
+
+def header_lines(manifest: dict[str, Any]) -> list[str]:
+    env = manifest.get("environment", {})
+    bits = [f"tier **{manifest.get('tier', '?')}**",
+            f"solvers {', '.join(manifest.get('solvers', [])) or '?'}",
+            f"mpsbench {env.get('mpsbench_version', '?')}"]
+    if env.get("git_commit"):
+        bits.append(f"commit {env['git_commit']}")
+    bits.append(f"{env.get('machine', '?')}, Python {env.get('python', '?')}")
+    if manifest.get("started"):
+        bits.append(f"started {manifest['started']}")
+    if manifest.get("wall_s") is not None:
+        bits.append(f"took {float(manifest['wall_s']):.0f} s with {manifest.get('jobs', 1)} job(s)")
+    return ["; ".join(bits) + "."]

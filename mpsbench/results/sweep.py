@@ -1,0 +1,102 @@
+"""Sweeps: expand a case's grid into tasks and run every task not done yet, keeping one record
+per run (:mod:`mpsbench.results.records`).
+
+A run whose record exists is skipped unless ``force``.  Failed and diverged runs are recorded with
+their reason and the sweep goes on.  Runs execute on an executor (:mod:`.executors`): worker
+processes (``jobs``), in-process (``jobs=1``) or a dask cluster.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable, Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+from mpsbench.cases import Case
+from mpsbench.results.executors import Executor, LocalExecutor
+from mpsbench.results.records import Task, environment, load_record, run_ids
+
+
+def plan(
+    case: Case, solvers: Sequence[str], tier: str, overrides: dict[str, Sequence[Any]] | None = None
+) -> list[Task]:
+    tasks = []
+    sets = case.expand(tier, overrides)
+    for solver in solvers:
+        ids = run_ids(case.name, solver, sets, case.defaults())
+        tasks += [Task(case.name, solver, tier, p, rid) for p, rid in zip(sets, ids, strict=True)]
+    return tasks
+
+
+ProgressFn = Callable[[int, int, dict[str, Any], bool], None]
+
+
+def print_progress(stream: Any = None) -> ProgressFn:
+    """A progress callback printing one line per finished (or skipped) run."""
+    stream = stream or sys.stderr
+    t0 = time.perf_counter()
+
+    def report(done: int, total: int, record: dict[str, Any], skipped: bool) -> None:
+        state = "skip" if skipped else record.get("status", "?")
+        took = "" if skipped else f" {record.get('wall_time_s', 0):.1f}s"
+        elapsed = time.perf_counter() - t0
+        print(f"[{done}/{total} {elapsed:6.0f}s] {state:<9} {record['run_id']}{took}",
+              file=stream, flush=True)
+        if record.get("status") in ("failed", "diverged") and not skipped:
+            print(f"    reason: {record.get('reason', '')}", file=stream, flush=True)
+
+    return report
+
+
+def run_tasks(
+    tasks: Iterable[Task],
+    outdir: str | Path,
+    *,
+    jobs: int = 1,
+    force: bool = False,
+    progress: ProgressFn | None = None,
+    task_dir: Callable[[Task], str | Path] | None = None,
+    executor: Executor | None = None,
+    retry: Callable[[dict[str, Any]], bool] | None = None,
+) -> list[dict[str, Any]]:
+    """Run every task not yet done (all with ``force``); return all records in task order.
+
+    ``task_dir(task)`` picks the folder of each task's ``runs/`` (default ``outdir`` for all);
+    ``mpsbench validate all`` uses it to run every case through one pool and one progress count
+    while each case keeps its own folder.  ``executor`` (:mod:`mpsbench.results.executors`: local
+    processes, a dask cluster) runs the runs; the default is a local one with ``jobs``
+    processes (``jobs`` is ignored when an executor is given).  ``retry(record)`` true
+    re-runs a run whose record exists (e.g. a failed one).
+    """
+    tasks = list(tasks)
+    outdir = Path(outdir)
+    folder: dict[str, Path] = {
+        t.run_id: Path(task_dir(t)) if task_dir is not None else outdir for t in tasks
+    }
+    for path in set(folder.values()) | (set() if task_dir is not None else {outdir}):
+        (path / "runs").mkdir(parents=True, exist_ok=True)
+    env = environment()
+    records: dict[str, dict[str, Any]] = {}
+    todo: list[Task] = []
+    done = 0
+    for task in tasks:
+        rec = None if force else load_record(folder[task.run_id] / "runs" / f"{task.run_id}.json")
+        if rec is not None and retry is not None and retry(rec):
+            rec = None
+        if rec is not None:
+            records[task.run_id] = rec
+            done += 1
+            if progress:
+                progress(done, len(tasks), rec, True)
+        else:
+            todo.append(task)
+    if executor is None:
+        executor = LocalExecutor(max(1, jobs))
+    for task, rec in executor.run(todo, lambda t: folder[t.run_id], env):
+        records[task.run_id] = rec
+        done += 1
+        if progress:
+            progress(done, len(tasks), rec, False)
+    return [records[t.run_id] for t in tasks]

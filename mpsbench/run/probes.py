@@ -1,0 +1,304 @@
+"""Probes observe a running solver on a schedule and keep a time series.
+
+A probe records at ``every`` seconds (from t = 0) or at the given ``at`` times; the runner shortens
+steps to land exactly on them.  ``probe.t`` holds the times and ``probe.values`` the recorded
+values.  Kernel averages use the WF2-shaped weight (1 - r/R)^3 over fluid particles within the
+probe radius (a Shepard average: sum w q / sum w).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import cKDTree
+
+from mpsbench.physics.particles import Kind, Particles
+
+FloatArray = NDArray[np.float64]
+
+
+class Probe:
+    """Base class: subclasses implement :meth:`measure`."""
+
+    def __init__(
+        self, name: str, every: float | None = None, at: Sequence[float] | None = None
+    ) -> None:
+        if every is None and at is None:
+            raise ValueError(f"probe {name!r}: give every= (seconds) or at= (times)")
+        if every is not None and not every > 0:
+            raise ValueError(f"probe {name!r}: every = {every!r} must be > 0 s")
+        self.name = name
+        self.every = every
+        self.at = sorted(float(t) for t in at) if at is not None else None
+        self.t: list[float] = []
+        self.values: list[Any] = []
+        self._schedule: list[float] = []
+        self._k = 0
+
+    def start(self, end_time: float) -> None:
+        self.t, self.values, self._k = [], [], 0
+        if self.at is not None:
+            self._schedule = [t for t in self.at if t <= end_time * (1 + 1e-12)]
+        else:
+            assert self.every is not None
+            if not math.isfinite(end_time):
+                self._schedule = []  # step-count runs: record every step instead
+            else:
+                n = int(math.floor(end_time / self.every + 1e-9))
+                self._schedule = [k * self.every for k in range(n + 1)]
+
+    def next_time(self) -> float:
+        return self._schedule[self._k] if self._k < len(self._schedule) else math.inf
+
+    def maybe_record(self, solver: Any) -> None:
+        if not self._schedule and self.every is not None:  # step-count run
+            self._record(solver)
+            return
+        while self._k < len(self._schedule) and solver.time >= self._schedule[
+            self._k
+        ] - 1e-12 * max(1.0, self._schedule[self._k]):
+            self._k += 1
+            self._record(solver)
+
+    def _record(self, solver: Any) -> None:
+        self.t.append(float(solver.time))
+        self.values.append(self.measure(solver))
+
+    def measure(self, solver: Any) -> Any:
+        raise NotImplementedError
+
+    def array(self) -> FloatArray:
+        return np.asarray(self.values, dtype=float)
+
+
+def kernel_average(
+    points: FloatArray,
+    positions: FloatArray,
+    values: FloatArray,
+    radius: float,
+    boxsize: FloatArray | None = None,
+) -> FloatArray:
+    """Shepard average of ``values`` at ``points`` with weight (1 - r/R)^3; NaN where empty."""
+    points = np.atleast_2d(np.asarray(points, float))
+    if len(positions) == 0:
+        return np.full(len(points), np.nan)
+    tree = cKDTree(positions, boxsize=boxsize)
+    sdm = tree.sparse_distance_matrix(
+        cKDTree(points, boxsize=boxsize), radius, output_type="coo_matrix"
+    )
+    # (the coo output keeps exact zeros, so coincident points are counted)
+    w = (1.0 - sdm.data / radius) ** 3
+    num = np.bincount(sdm.col, w * values[sdm.row], len(points))
+    den = np.bincount(sdm.col, w, len(points))
+    out = np.full(len(points), np.nan)
+    ok = den > 0
+    out[ok] = num[ok] / den[ok]
+    return out
+
+
+def _quantity(p: Particles, quantity: str) -> FloatArray:
+    if quantity == "u":
+        return p.vel[:, 0]
+    if quantity == "v":
+        return p.vel[:, 1]
+    if quantity == "speed":
+        return np.hypot(p.vel[:, 0], p.vel[:, 1])
+    if quantity == "pressure":
+        return p.pressure
+    if quantity in p.fields:
+        return p.fields[quantity]
+    raise KeyError(f"unknown quantity {quantity!r}: use u, v, speed, pressure or a field name")
+
+
+class Profile(Probe):
+    """A quantity (``u``, ``v``, ``speed``, ``pressure`` or a field) along a line.
+
+    Values are kernel averages of the fluid particles within ``radius`` of each point.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        start: Sequence[float],
+        end: Sequence[float],
+        n_points: int,
+        quantity: str,
+        radius: float,
+        **schedule: Any,
+    ) -> None:
+        super().__init__(name, **schedule)
+        s = np.linspace(0.0, 1.0, n_points)
+        a, b = np.asarray(start, float), np.asarray(end, float)
+        self.points = a + s[:, None] * (b - a)
+        self.quantity = quantity
+        self.radius = radius
+
+    def measure(self, solver: Any) -> FloatArray:
+        p = solver.state()
+        f = p.kind == Kind.FLUID
+        return kernel_average(self.points, p.pos[f], _quantity(p, self.quantity)[f], self.radius)
+
+
+class LayerAverage(Probe):
+    """Mean of a quantity over fluid particles in bins along one axis (e.g. u(y) in Couette)."""
+
+    def __init__(
+        self, name: str, axis: int, edges: Sequence[float], quantity: str, **schedule: Any
+    ) -> None:
+        super().__init__(name, **schedule)
+        self.axis = axis
+        self.edges = np.asarray(edges, float)
+        self.centres = 0.5 * (self.edges[1:] + self.edges[:-1])
+        self.quantity = quantity
+
+    def measure(self, solver: Any) -> FloatArray:
+        p = solver.state()
+        f = p.kind == Kind.FLUID
+        x = p.pos[f, self.axis]
+        q = _quantity(p, self.quantity)[f]
+        idx = np.digitize(x, self.edges) - 1
+        ok = (idx >= 0) & (idx < len(self.centres))
+        num = np.bincount(idx[ok], q[ok], len(self.centres))
+        den = np.bincount(idx[ok], None, len(self.centres))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(den > 0, num / np.maximum(den, 1), np.nan)
+
+
+class PointPressure(Probe):
+    """Kernel-averaged pressure of fluid (and wall) particles around sensor points.
+
+    For a wall sensor put the point on the wall line and use a radius of about 2-3 l0.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        points: Sequence[Sequence[float]],
+        radius: float,
+        include_wall: bool = True,
+        **schedule: Any,
+    ) -> None:
+        super().__init__(name, **schedule)
+        self.points = np.atleast_2d(np.asarray(points, float))
+        self.radius = radius
+        self.include_wall = include_wall
+
+    def measure(self, solver: Any) -> FloatArray:
+        p = solver.state()
+        use = p.kind == Kind.FLUID
+        if self.include_wall:
+            use = use | (p.kind == Kind.WALL)
+        out = kernel_average(self.points, p.pos[use], p.pressure[use], self.radius)
+        return np.nan_to_num(out, nan=0.0)  # no particle near the sensor: dry, p = 0
+
+
+class SurgeFront(Probe):
+    """Largest coordinate of the fluid along ``axis`` (the leading edge of a surge)."""
+
+    def __init__(
+        self, name: str, axis: int = 0, below: float | None = None, **schedule: Any
+    ) -> None:
+        super().__init__(name, **schedule)
+        self.axis = axis
+        self.below = below  # only particles with y < below (ignore splashes)
+
+    def measure(self, solver: Any) -> float:
+        p = solver.state()
+        f = p.kind == Kind.FLUID
+        if self.below is not None:
+            f &= p.pos[:, 1] < self.below
+        return float(p.pos[f, self.axis].max()) if f.any() else math.nan
+
+
+class WaterHeight(Probe):
+    """Highest fluid particle within ``half_width`` of x = ``x``."""
+
+    def __init__(self, name: str, x: float, half_width: float, **schedule: Any) -> None:
+        super().__init__(name, **schedule)
+        self.x = x
+        self.half_width = half_width
+
+    def measure(self, solver: Any) -> float:
+        p = solver.state()
+        f = (p.kind == Kind.FLUID) & (np.abs(p.pos[:, 0] - self.x) <= self.half_width)
+        return float(p.pos[f, 1].max()) if f.any() else 0.0
+
+
+class Snapshot(Probe):
+    """Copies of the particle state (positions, velocity, pressure, kind, fields)."""
+
+    def __init__(self, name: str, with_diagnostics: bool = True, **schedule: Any) -> None:
+        super().__init__(name, **schedule)
+        self.with_diagnostics = with_diagnostics
+
+    def measure(self, solver: Any) -> Particles:
+        p = solver.state().copy()
+        if self.with_diagnostics:
+            diag = solver.diagnostics()
+            nd = diag.get("number_density")
+            if nd is not None and len(nd) == p.n:
+                p.fields["number_density"] = np.asarray(nd, float).copy()
+        return p
+
+
+class Callback(Probe):
+    """Any function of the solver, for one-off measurements."""
+
+    def __init__(self, name: str, fn: Callable[[Any], Any], **schedule: Any) -> None:
+        super().__init__(name, **schedule)
+        self.fn = fn
+
+    def measure(self, solver: Any) -> Any:
+        return self.fn(solver)
+
+
+def write_vtu(path: str | Path, p: Particles) -> Path:
+    """Write particles as a VTK UnstructuredGrid (.vtu, ASCII) of vertices for ParaView."""
+    path = Path(path)
+    n = p.n
+    pts = np.column_stack([p.pos, np.zeros(n)])
+    arrays = {
+        "velocity": np.column_stack([p.vel, np.zeros(n)]),
+        "pressure": p.pressure,
+        "kind": p.kind.astype(float),
+        **p.fields,
+    }
+
+    def ints(r: range) -> str:
+        return " ".join(map(str, r))
+
+    def fmt(a: FloatArray) -> str:
+        return " ".join(f"{v:.9g}" for v in np.ravel(a))
+
+    data = []
+    for name, a in arrays.items():
+        a = np.asarray(a, float)
+        comps = a.shape[1] if a.ndim == 2 else 1
+        data.append(
+            f'<DataArray type="Float64" Name={quoteattr(name)} NumberOfComponents="{comps}" '
+            f'format="ascii">{fmt(a)}</DataArray>'
+        )
+    xml = (
+        '<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="0.1" '
+        'byte_order="LittleEndian">\n<UnstructuredGrid>\n'
+        f'<Piece NumberOfPoints="{n}" NumberOfCells="{n}">\n'
+        f'<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">{fmt(pts)}'
+        "</DataArray></Points>\n"
+        "<Cells>"
+        f'<DataArray type="Int64" Name="connectivity" format="ascii">{ints(range(n))}'
+        "</DataArray>"
+        f'<DataArray type="Int64" Name="offsets" format="ascii">{ints(range(1, n + 1))}'
+        "</DataArray>"
+        f'<DataArray type="UInt8" Name="types" format="ascii">{" ".join(["1"] * n)}</DataArray>'
+        "</Cells>\n"
+        f"<PointData>{''.join(data)}</PointData>\n"
+        "</Piece>\n</UnstructuredGrid>\n</VTKFile>\n"
+    )
+    path.write_text(xml)
+    return path

@@ -1,0 +1,261 @@
+"""The Solver protocol, the Problem a solver is given, capabilities, and the solver registry.
+
+A backend implements :class:`Solver` (usually by subclassing :class:`SolverBase`, which owns the
+time, step count, status and counters).  It never owns the time loop: the runner
+(:mod:`mpsbench.run.runner`) asks for ``stable_dt()``, calls ``step(dt)`` and observes ``state()``.
+This mirrors scipy's ``OdeSolver`` / ``solve_ivp`` split.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from mpsbench.physics.config import (
+    DiffusionPhysics,
+    FlowPhysics,
+    Inflow,
+    Models,
+    Region,
+    TimeStepping,
+    WallMotion,
+)
+from mpsbench.physics.particles import Box, Kind, Particles
+from mpsbench.registry import Registry
+
+
+class Status(StrEnum):
+    READY = "ready"
+    RUNNING = "running"
+    COMPLETED = "completed"
+    DIVERGED = "diverged"
+    FAILED = "failed"
+
+
+class UnsupportedProblem(ValueError):
+    """The solver does not support what the problem needs; ``reasons`` lists each gap."""
+
+    def __init__(self, solver: str, reasons: list[str]) -> None:
+        self.reasons = reasons
+        super().__init__(f"solver {solver!r} cannot run this problem: " + "; ".join(reasons))
+
+
+@dataclass
+class Problem:
+    """Everything a solver needs to start a run.
+
+    ``particles`` is the initial state (the solver copies it).  ``box`` bounds the domain and
+    says which axes are periodic.  ``l0`` is the initial particle spacing [m].
+    """
+
+    particles: Particles
+    box: Box
+    l0: float
+    physics: DiffusionPhysics | FlowPhysics
+    models: Models = field(default_factory=Models)
+    time_stepping: TimeStepping = field(default_factory=TimeStepping)
+    inflow: Inflow | None = None
+    outflows: tuple[Region, ...] = ()
+    wall_motions: tuple[WallMotion, ...] = ()
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.l0, (int, float)) and self.l0 > 0):
+            raise ValueError(f"Problem.l0 = {self.l0!r} is not allowed: a number > 0 (m)")
+        if self.particles.n == 0:
+            raise ValueError("Problem.particles is empty: at least one particle is needed")
+
+    def requirements(self) -> dict[str, set[str]]:
+        """What this problem asks of a solver, by capability category."""
+        boundaries: set[str] = set()
+        if self.box.periodic == (True, True):
+            boundaries.add("periodic")
+        elif self.box.periodic[0]:
+            boundaries.add("periodic-x")
+        elif self.box.periodic[1]:
+            boundaries.add("periodic-y")
+        if np.any(self.particles.kind != Kind.FLUID):
+            boundaries.add("walls")
+        if self.wall_motions:
+            boundaries.add("moving-walls")
+        if self.inflow is not None:
+            boundaries.add("inflow")
+        if self.outflows:
+            boundaries.add("outflow")
+        features: set[str] = set()
+        ph = self.physics
+        if isinstance(ph, FlowPhysics):
+            if ph.collision:
+                features.add("collision")
+            if ph.stabilization:
+                features.add("stabilization")
+            if ph.wall_velocity == "mirror":
+                features.add("mirror-walls")
+        if self.models.gradient_correction:
+            features.add("gradient-correction")
+        return {
+            "physics": {ph.kind},
+            "boundaries": boundaries,
+            "features": features,
+            "laplacians": {self.models.laplacian},
+            "weights": {self.models.weight},
+            "gradients": {self.models.gradient} if isinstance(ph, FlowPhysics) else set(),
+        }
+
+
+_SINGULAR = {
+    "physics": "physics",
+    "boundaries": "boundary",
+    "features": "feature",
+    "laplacians": "Laplacian",
+    "weights": "weighting function",
+    "gradients": "pressure gradient",
+}
+
+
+@dataclass(frozen=True)
+class Capabilities:
+    """What a backend supports.  ``None`` for a model category means "any registered model"."""
+
+    physics: frozenset[str] = frozenset({"diffusion", "flow"})
+    boundaries: frozenset[str] = frozenset(
+        {"periodic", "periodic-x", "periodic-y", "walls", "moving-walls", "inflow", "outflow"}
+    )
+    features: frozenset[str] = frozenset(
+        {"collision", "stabilization", "mirror-walls", "gradient-correction"}
+    )
+    laplacians: frozenset[str] | None = None
+    weights: frozenset[str] | None = None
+    gradients: frozenset[str] | None = None
+
+    def gaps(self, problem: Problem) -> list[str]:
+        """Reasons this backend cannot run ``problem`` (empty when it can)."""
+        out = []
+        for category, needed in problem.requirements().items():
+            have = getattr(self, category)
+            if have is None:
+                continue
+            for item in sorted(needed - set(have)):
+                out.append(f"{_SINGULAR.get(category, category)} {item!r} not supported")
+        return out
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            k: (sorted(v) if v is not None else "any")
+            for k, v in self.__dict__.items()
+        }
+
+
+@runtime_checkable
+class Solver(Protocol):
+    """What the runner needs from a backend."""
+
+    name: str
+    version: str
+    capabilities: Capabilities
+    time: float
+    n_steps: int
+    status: Status
+
+    def setup(self, problem: Problem) -> None:
+        """Take a problem (raise :class:`UnsupportedProblem` if it cannot be run)."""
+
+    def stable_dt(self) -> float:
+        """The largest stable time step for the current state [s]."""
+
+    def step(self, dt: float) -> None:
+        """Advance by ``dt`` seconds."""
+
+    def state(self) -> Particles:
+        """The current particles (a view: copy before keeping it)."""
+
+    def diagnostics(self) -> dict[str, Any]:
+        """Extra per-particle quantities: ``number_density``, ``n0``, ``free_surface``."""
+
+
+class SolverBase:
+    """Bookkeeping shared by backends: time, step count, status, counters, capability checks.
+
+    Subclasses implement ``_setup(problem)``, ``_advance(dt)``, ``stable_dt()`` and ``state()``.
+    """
+
+    name: str = "base"
+    version: str = "0"
+    capabilities: Capabilities = Capabilities()
+
+    def __init__(self) -> None:
+        self.time = 0.0
+        self.n_steps = 0
+        self.status = Status.READY
+        self.problem: Problem | None = None
+        self.counters: dict[str, float] = {"particle_steps": 0.0, "neighbour_builds": 0.0}
+
+    def setup(self, problem: Problem) -> None:
+        gaps = self.capabilities.gaps(problem)
+        if gaps:
+            raise UnsupportedProblem(self.name, gaps)
+        self.problem = problem
+        self.time = 0.0
+        self.n_steps = 0
+        self.counters = {k: 0.0 for k in self.counters}
+        self._setup(problem)
+        self.status = Status.RUNNING
+
+    def step(self, dt: float) -> None:
+        if self.problem is None:
+            raise RuntimeError(f"{self.name}: call setup(problem) before step()")
+        self._advance(dt)
+        self.time += dt
+        self.n_steps += 1
+        self.counters["particle_steps"] += self.state().n
+
+    def diagnostics(self) -> dict[str, Any]:
+        return {}
+
+    # ---- to implement
+    def _setup(self, problem: Problem) -> None:
+        raise NotImplementedError
+
+    def _advance(self, dt: float) -> None:
+        raise NotImplementedError
+
+    def stable_dt(self) -> float:
+        raise NotImplementedError
+
+    def state(self) -> Particles:
+        raise NotImplementedError
+
+
+def _validate_solver(obj: Any) -> None:
+    if not isinstance(obj, type):
+        raise TypeError(f"a solver entry must be a class, got {type(obj).__name__}")
+    missing = [
+        a
+        for a in ("name", "version", "capabilities", "setup", "stable_dt", "step", "state")
+        if not hasattr(obj, a)
+    ]
+    if missing:
+        raise TypeError(f"solver class {obj.__name__} lacks {', '.join(missing)}")
+
+
+SOLVERS: Registry[type] = Registry("solver", group="mpsbench.solvers", validate=_validate_solver)
+"""Every backend, built-in or plugin, comes through the ``mpsbench.solvers`` entry-point group
+(the built-ins are declared in mpsbench's own pyproject.toml)."""
+
+
+def get_solver_class(name_or_cls: str | type) -> type:
+    """A solver class from a registry name or the class itself."""
+    if isinstance(name_or_cls, str):
+        return SOLVERS.get(name_or_cls)
+    _validate_solver(name_or_cls)
+    return name_or_cls
+
+
+def make_solver(name_or_cls: str | type | Solver) -> Solver:
+    """A fresh solver instance from a name, a class, or an instance (returned as is)."""
+    if isinstance(name_or_cls, (str, type)):
+        return get_solver_class(name_or_cls)()
+    return name_or_cls
