@@ -1,4 +1,5 @@
-"""MPS operators against the lattice oracles of method.md (sections 1-3) and exact identities."""
+"""MPS operators against the lattice oracles of docs/method.md (sections 1-3) and exact
+identities."""
 
 from __future__ import annotations
 
@@ -30,7 +31,7 @@ from tests.helpers import free_lattice, interior_mask
 
 RATIOS = (2.1, 2.5, 3.1, 3.5, 4.0)
 
-# method.md section 1: (neighbours, WF1 n0, WF1 lambda, WF2 n0, WF2 lambda), l0 = 1.
+# docs/method.md section 1: (neighbours, WF1 n0, WF1 lambda, WF2 n0, WF2 lambda), l0 = 1.
 N0_LAMBDA = {
     2.1: (12, 6.5397, 1.3884, 0.7146, 1.1967),
     2.5: (20, 11.0153, 1.8940, 1.2331, 1.3741),
@@ -40,7 +41,7 @@ N0_LAMBDA = {
 }
 FOUR_DECIMALS = 0.5e-4 + 1e-12
 
-# method.md section 3: ratio of each model to the exact Laplacian on a square lattice.
+# docs/method.md section 3: ratio of each model to the exact Laplacian on a square lattice.
 # (model, "quad" | "mode") -> {(weight, r_e/l0): ratio}
 _TABLE = """
 wf1 2.1 1.000 0.992 2.126 2.108 1.000 0.993 1.418
@@ -360,7 +361,7 @@ def test_pressure_gradients_on_linear_pressure_over_lattice(wf: str) -> None:
 
     PGM2 as published (Khayyer & Gotoh 2008) returns zero there: on a uniform lattice
     p_j - pmin_j = p_i - pmin_i, so every pair term is the same constant and the sum cancels.
-    This pins that property of the formula (see method.md section 2), it is not a wish.
+    This pins that property of the formula (see docs/method.md section 2), it is not a wish.
     """
     pos, pairs, weight, re, n0, _ = lattice_case(wf, 2.1)
     p = 100.0 + 3.0 * pos[:, 0] - 2.0 * pos[:, 1]

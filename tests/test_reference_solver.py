@@ -2,7 +2,7 @@
 
 Oracles are computed here independently of :mod:`mpsbench.physics.operators`: the weighting
 functions
-and Laplacian coefficients are written out from shared method.md sections 1 and 3.
+and Laplacian coefficients are written out from docs/method.md sections 1 and 3.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from mpsbench.testing import problems
 LAPLACIANS = ("koshizuka-oka", "khayyer-gotoh", "xu-jin", "xu-jin-analytic")
 RE_RATIOS = (2.1, 3.1, 4.0)
 
-# method.md section 3, ratio of each model to the exact Laplacian on a square lattice (l0 = 1):
+# docs/method.md section 3, ratio of each model to the exact Laplacian on a square lattice (l0 = 1):
 # "quad" phi = x^2, "mode" phi = sin(kx) sin(ky) with k l0 = 0.2.  xu-jin-analytic has no
 # "mode" column in the table.
 TABLE = {
@@ -83,7 +83,7 @@ TABLE_SLIPS = {
 
 
 def _weight(wf: str, r: np.ndarray, re: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """W, W', W'' of method.md section 1, written out again (independent of
+    """W, W', W'' of docs/method.md section 1, written out again (independent of
     mpsbench.physics.weights)."""
     if wf == "wf1":
         return re / r - 1.0, -re / r**2, 2.0 * re / r**3
@@ -125,7 +125,7 @@ def mode_eigenvalue(laplacian: str, wf: str, re_ratio: float, kl0: float) -> flo
 
 @pytest.mark.parametrize("wf, re_ratio", sorted(TABLE))
 def test_lattice_sum_reproduces_method_table(wf: str, re_ratio: float) -> None:
-    """The oracle used below reproduces method.md's table at k l0 = 0.2 (to its rounding)."""
+    """The oracle used below reproduces docs/method.md's table at k l0 = 0.2 (to its rounding)."""
     for lap, (quad, mode) in TABLE[(wf, re_ratio)].items():
         dx, _, c = lattice_coefficients(lap, wf, re_ratio)
         got_quad = float((c * dx**2).sum()) / 2.0  # lap(x^2) = sum c dx^2, exact 2

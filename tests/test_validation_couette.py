@@ -40,7 +40,7 @@ def cell(**params: Any) -> dict[str, Any]:
      (0.1125, (0.1054, 0.2903, 0.5979))],
 )
 def test_series_reproduces_the_reference_table(t: float, expected: tuple[float, ...]) -> None:
-    """method.md 6 b: u/U at y/L = 0.25, 0.5, 0.75 (Morris et al. 1997)."""
+    """docs/method.md 6 b: u/U at y/L = 0.25, 0.5, 0.75 (Morris et al. 1997)."""
     u = cou.series(np.array([0.25, 0.5, 0.75]) * L, t) / U
     np.testing.assert_array_equal(np.round(u, 4), expected)
 

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from mpsbench.validations.dam_break import metrics as dm
 from mpsbench.validations import experiments
+from mpsbench.validations.dam_break import metrics as dm
 from mpsbench.validations.dam_break.case import CASE, build
 
 GOOD = """# source: a paper

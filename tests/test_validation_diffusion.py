@@ -96,7 +96,7 @@ def test_consistent_models_are_within_two_percent_at_l0_1_40(
 
 def test_khayyer_gotoh_over_diffuses() -> None:
     """Its smallest error in the quick grid (WF1, r_e/l0 = 4) is still above 30 %; the decay
-    rate is the method.md lattice ratio (1.761 for x^2 at WF1, 4.0)."""
+    rate is the docs/method.md lattice ratio (1.761 for x^2 at WF1, 4.0)."""
     m = cell(laplacian="khayyer-gotoh", weight="wf1", re_ratio=4.0, l0=1 / 40)
     assert m["l2_error"] > dif.OVERDIFFUSING_MIN_L2
     assert m["decay_ratio"] == pytest.approx(1.73, abs=0.05)

@@ -16,7 +16,7 @@ import pandas as pd
 from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
 from mpsbench.physics.weights import WEIGHTS
 
-# The four Laplacians of method.md section 3, in the order the tables list them.
+# The four Laplacians of docs/method.md section 3, in the order the tables list them.
 MODELS = ("koshizuka-oka", "khayyer-gotoh", "xu-jin", "xu-jin-analytic")
 WFS = ("wf1", "wf2")
 RE_RATIOS = (2.1, 2.5, 3.1, 3.5, 4.0)
@@ -154,7 +154,7 @@ def observed_orders(
 
 
 def sort_models(df: pd.DataFrame, extra: Iterable[str] = ()) -> pd.DataFrame:
-    """Sort by model (method.md order), weight, then ``extra`` columns."""
+    """Sort by model (docs/method.md order), weight, then ``extra`` columns."""
     if df.empty:
         return df
     by = [c for c in ("solver", "weight", *extra) if c in df.columns]

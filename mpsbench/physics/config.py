@@ -124,7 +124,7 @@ class DiffusionPhysics:
 
 @dataclass(frozen=True)
 class FlowPhysics:
-    """WC-MPS flow (method.md sections 4-5).
+    """WC-MPS flow (docs/method.md sections 4-5).
 
     rho0 [kg/m^3], nu [m^2/s], gravity [m/s^2], c0 [m/s] (sound speed of the equation of state).
     """
@@ -169,7 +169,7 @@ class TimeStepping:
     """dt = min(cfl l0 / (c0 + |u|max), c_nu 2 / (nu rho(L))) unless ``dt`` is fixed.
 
     rho(L) is the Gershgorin bound of the Laplacian's spectral radius, 2 max_i sum_j |c_ij|
-    (method.md section 4: derive the viscous limit from the model, not a fixed constant); for
+    (docs/method.md section 4: derive the viscous limit from the model, not a fixed constant); for
     diffusion the limit is c_nu 2 / (kappa rho(L)).  ``c_nu`` is the fraction of the
     forward-Euler limit 2 / rho(L) used.  :meth:`stable_dt` is the rule every backend applies.
     """

@@ -2,7 +2,7 @@
 
 Every operator takes precomputed per-pair quantities so one neighbour list (built at the
 largest radius) serves all radii; a weight evaluated at a smaller r_e is simply zero beyond it.
-Formulas and their provenance: shared method.md sections 1-3 (D_s = ``dim`` = 2).
+Formulas and their provenance: docs/method.md sections 1-3 (D_s = ``dim`` = 2).
 
 Registries: ``LAPLACIANS`` (``koshizuka-oka``, ``khayyer-gotoh``, ``xu-jin``,
 ``xu-jin-analytic``) and ``GRADIENTS`` (``pgm1``, ``pgm2``, ``pgm3``).  Adding a Laplacian is one

@@ -4,7 +4,7 @@ Adding a weighting function is one subclass of :class:`WeightFunction` plus one
 ``WEIGHTS.register`` call (or an entry point in the ``mpsbench.physics.weights`` group).
 All functions are vectorised over ``r`` and return 0 outside the support ``r > r_e``.
 
-The support is closed (method.md: sums run over r_ij <= r_e) and, so that it stays closed under
+The support is closed (docs/method.md: sums run over r_ij <= r_e) and, so that it stays closed under
 rounding, a distance up to ``r_e (1 + SUPPORT_RTOL)`` counts as ``r_e``.  On a square lattice
 with an integer r_e/l0 (2, 3, 4, ...) some neighbours sit exactly on the support boundary; for
 weights whose derivative is not zero there (WF1: W' = -1/r_e), the Laplacians that use W' would

@@ -7,7 +7,7 @@ and the result does not depend on the number of threads.  Separations ``dx = r_j
 positions in each kernel; weights are evaluated inline and are zero beyond the kernel's own
 ``re``, so one list built at ``r_max + skin`` serves every radius.
 
-Formulas are those of :mod:`mpsbench.physics.operators` (method.md sections 2-5, D_s = 2) and
+Formulas are those of :mod:`mpsbench.physics.operators` (docs/method.md sections 2-5, D_s = 2) and
 agree with
 them to rounding (per-particle summation order differs).  Integer codes select models:
 
@@ -604,7 +604,7 @@ def laplacian_abs_rowsum(offsets, nbr, pos, period, model, wcode, re, pref, out)
 
 @kernel
 def collision(offsets, nbr, pos, period, vel, kind, distance, restitution, wall_share, out):
-    """Velocity increments of the Lee et al. (2011) collision model (method.md section 4).
+    """Velocity increments of the Lee et al. (2011) collision model (docs/method.md section 4).
 
     For a fluid particle i and a neighbour j closer than ``distance`` (alpha_c l0) that
     approaches it, (u_i - u_j) . r_ij > 0 with r_ij = r_j - r_i:
@@ -647,7 +647,7 @@ def collision(offsets, nbr, pos, period, vel, kind, distance, restitution, wall_
 def stabilization(
     offsets, nbr, pos, period, vel, kind, inner, with_walls, wcode, re, n0, l0, alpha_s, out
 ):
-    """Velocity increments of the stabilization (method.md section 5).
+    """Velocity increments of the stabilization (docs/method.md section 5).
 
     du_i = -(alpha_s l0 / n0) sum_j W'_ij (u_j - u_i) for particles with ``inner`` set (fluid,
     not free surface), 0 elsewhere.  ``with_walls``: boundary particles are neighbours in the

@@ -1,7 +1,7 @@
 """The numba backend: the reference backend's physics over a cell-linked list, compiled.
 
 Same models, boundary conventions and order of operations as
-:class:`mpsbench.solvers.reference.ReferenceSolver` (shared method.md sections 2-5), so the two
+:class:`mpsbench.solvers.reference.ReferenceSolver` (docs/method.md sections 2-5), so the two
 agree to rounding:
 
 * diffusion: phi <- phi + dt kappa L phi, L held as per-entry coefficients of a CSR list built

@@ -1,6 +1,6 @@
 """The reference backend: vectorised numpy + scipy, readable first, no loops over particles.
 
-Physics and models follow shared method.md sections 2-5:
+Physics and models follow docs/method.md sections 2-5:
 
 * diffusion: phi <- phi + dt kappa L phi, L the chosen Laplacian assembled once (particles fixed);
 * flow (WC-MPS): predictor (viscosity + gravity), number density at r*, equation of state,

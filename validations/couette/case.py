@@ -1,4 +1,4 @@
-"""Start-up Couette flow between parallel plates against the series solution (method.md 6 b).
+"""Start-up Couette flow between parallel plates against the series solution (docs/method.md 6 b).
 
 Morris et al. (1997) parameters: gap L = 1e-3 m, nu = 1e-6 m^2/s, rho0 = 1000 kg/m^3; the plate
 at y = 0 is fixed, the plate at y = L moves at U = 1.25e-5 m/s in x from t = 0; x is periodic.
@@ -22,12 +22,12 @@ the plate line and suits both placements.
 
 The flow is one-dimensional: every fluid row keeps one velocity, so the periodic strip is only
 as wide as the neighbour search allows (2 (r_e + l0/2) + l0) and u(y) is the mean over each row
-(:class:`mpsbench.run.probes.LayerAverage`).  Gravity is off, c0 = 10 U (method.md: c0 >= 10 U_max;
-the pressure stays essentially uniform) and dt is the fraction ``c_nu`` = 0.25 of the backend's
-explicit viscous limit.  Forward Euler's error is first order in dt and, after the impulsive
-start, not negligible against the smallest errors: at L/40, r_e/l0 = 3.1, WF2, xu-jin, going from
-c_nu = 0.5 to 0.25 to 0.125 gives 0.204 %, 0.212 %, 0.217 % with prescribed walls (the
-dt -> 0 limit is about 0.221 %) and 0.113 %, 0.104 %, 0.099 % with mirrored ones (about
+(:class:`mpsbench.run.probes.LayerAverage`).  Gravity is off, c0 = 10 U (docs/method.md: c0 >=
+10 U_max; the pressure stays essentially uniform) and dt is the fraction ``c_nu`` = 0.25 of the
+backend's explicit viscous limit.  Forward Euler's error is first order in dt and, after the
+impulsive start, not negligible against the smallest errors: at L/40, r_e/l0 = 3.1, WF2, xu-jin,
+going from c_nu = 0.5 to 0.25 to 0.125 gives 0.204 %, 0.212 %, 0.217 % with prescribed walls
+(the dt -> 0 limit is about 0.221 %) and 0.113 %, 0.104 %, 0.099 % with mirrored ones (about
 0.094 %).  With ``dt_check`` the transient is repeated at c_nu / 2 and ``dt_halving_change``
 records how far the t = 0.1125 s profile moved (the time error at c_nu is about twice that).
 
@@ -105,7 +105,7 @@ class CouetteCase(Case):
         f"x-periodic, nu = {NU:g} m^2/s.  Velocity profiles u(y) at t = 0.0225, 0.045 and "
         "0.1125 s and at steady state against the series solution; relative L2 error per time, "
         "where the error sits (next to the plates or in the interior), and the change from "
-        "L/20 to L/40 (method.md 6 b)."
+        "L/20 to L/40 (docs/method.md 6 b)."
     )
     params = (
         Param("laplacian", "xu-jin", "Laplacian model", kind=str, choices=cm.laplacian_names()),

@@ -1,5 +1,5 @@
 """Dam break: surge front and column height (Martin & Moyce 1952), wall impact pressure
-(Lobovsky et al. 2014); method.md section 6 (d).
+(Lobovsky et al. 2014); docs/method.md section 6 (d).
 
 Two geometries (``geometry``):
 
@@ -387,8 +387,8 @@ class DamBreakCase(Case):
     title = "Dam break: surge front, column height and wall impact pressure"
     order = 40
     description = (
-        "Collapse of a water column (method.md 6 d).  Koshizuka & Oka geometry: surge front Z(T) "
-        "and residual height H*(tau) against Martin & Moyce (1952).  Lobovsky geometry: first "
+        "Collapse of a water column (docs/method.md 6 d).  Koshizuka & Oka geometry: surge front "
+        "Z(T) and residual height H*(tau) against Martin & Moyce (1952).  Lobovsky geometry: first "
         "impact peak p* at four downstream-wall sensors against the measured 2.5-97.5 % band "
         "(Lobovsky et al. 2014), and the sensor noise.  WC-MPS = Koshizuka-Oka Laplacian without "
         "stabilization; IWC-MPS = Xu-Jin Laplacian with stabilization."

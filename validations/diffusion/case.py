@@ -1,9 +1,9 @@
-"""2-D diffusion on a periodic unit square against the analytical decay (method.md section 6 a).
+"""2-D diffusion on a periodic unit square against the analytical decay (docs/method.md 6 a).
 
 d(phi)/dt = kappa lap(phi) on fixed particles, phi0 = sin(2 pi x) sin(2 pi y) on [0, 1)^2 with
 both axes periodic.  The exact solution is phi = exp(-8 pi^2 kappa t) phi0.  kappa is fixed at
 ln 2 / (8 pi^2) m^2/s (about 8.78e-3) so that the exact amplitude halves at the end time
-t = 1 s (method.md: run to exp(-8 pi^2 kappa t) = 0.5).
+t = 1 s (docs/method.md: run to exp(-8 pi^2 kappa t) = 0.5).
 
 Time stepping is the backend's forward Euler with a fixed dt (parameter ``dt``, default 1e-4 s,
 10 000 steps).  Its error does not depend on l0: it is about (lambda dt / 2) lambda t for the
@@ -47,7 +47,7 @@ FIELD = "phi"
 ALL_L0 = (1 / 20, 1 / 40, 1 / 80)
 ALL_JITTER = (0.0, 0.05, 0.1)
 
-# Tolerances that decide pass or fail (method.md section 3; issue 4 acceptance).
+# Tolerances that decide pass or fail (docs/method.md section 3; issue 4 acceptance).
 LATTICE_L0 = 1 / 40
 ACCURATE_MODELS = ("xu-jin", "koshizuka-oka")
 ACCURATE_MAX_L2 = 0.02  # xu-jin and koshizuka-oka on the lattice at l0 = 1/40: below 2 %
@@ -71,7 +71,7 @@ class DiffusionCase(Case):
         "phi0 = sin(2 pi x) sin(2 pi y), run until the exact amplitude has halved "
         f"(t = {END_TIME:g} s, kappa = ln2/(8 pi^2) = {KAPPA:.4g} m^2/s).  Relative L2 and Linf "
         "errors of the end field, the decay-rate ratio (measured / exact), observed order of "
-        "convergence in l0, and a dt-halving check of the time-stepping error (method.md 6 a)."
+        "convergence in l0, and a dt-halving check of the time-stepping error (docs/method.md 6 a)."
     )
     params = (
         Param("laplacian", "xu-jin", "Laplacian model", kind=str, choices=cm.laplacian_names()),
@@ -103,7 +103,7 @@ class DiffusionCase(Case):
             {"laplacian": list(cm.MODELS), "weight": list(cm.WFS), "re_ratio": [3.1],
              "l0": [1 / 20, 1 / 40], "jitter": [0.1]},
         ],
-        # the whole grid of method.md 6 a, every run with its dt-halving check
+        # the whole grid of docs/method.md 6 a, every run with its dt-halving check
         "paper": [_full(l0=list(ALL_L0), jitter=list(ALL_JITTER), dt_check=[True])],
     }
     metrics = {
@@ -430,7 +430,7 @@ def _convergence_lines(conv: pd.DataFrame) -> list[str]:
         if jit == 0:
             note = ("  Orders near zero belong to models that converge to a wrong decay rate "
                     "(khayyer-gotoh and xu-jin-analytic: an O(1) factor on the lattice, "
-                    "method.md section 3).")
+                    "docs/method.md section 3).")
         else:
             note = ("  On an irregular cloud the MPS Laplacians lose their second-order "
                     "consistency, so the orders fall below the lattice's; a model with an O(1) "

@@ -1,17 +1,17 @@
-"""Plane water jet impinging on a rigid flat plate (method.md 6c).
+"""Plane water jet impinging on a rigid flat plate (docs/method.md 6c).
 
 A 2-D jet of width b and speed U (no gravity) enters through an inflow segment ``nozzle_gap``
 b above a plate of length ``plate_length`` b normal to it, spreads into two sheets along the plate
 and leaves through outflow zones near the plate ends (geometry: :mod:`.geometry`).  The
 plate pressure is averaged over a steady window [t_end - t_window, t_end] and compared with the
 free-streamline solution (:mod:`.metrics`).  The study asks what the stabilization
-(method.md 5), the pressure-gradient model, the collision distance, the weighting function and
+(docs/method.md 5), the pressure-gradient model, the collision distance, the weighting function and
 the resolution do to the plate pressure and to the pressure noise.
 
 Defaults: b = 0.1 m, U = 1 m/s, nozzle 2 b above the plate, plate 6 b long (|x| <= 3 b; fluid
 is removed beyond |x| = 3 b - 4 l0), l0 = b/20, water (rho 1000 kg/m^3, nu 1e-6 m^2/s),
 c0 = 10 U, dt = 0.2 l0 / (c0 + |u|max), WF2, r_e = 2.1 l0, PGM1, Laplacian xu-jin,
-stabilization on with alpha_s = 0.01 and wall/dummy neighbours (method.md 5 defaults), no
+stabilization on with alpha_s = 0.01 and wall/dummy neighbours (docs/method.md 5 defaults), no
 collision model.  The jet column between nozzle and plate starts filled and moving at U (an
 empty start reaches the same state 2 b/U later).  Runs end at t_end = 7 b/U and average over
 the last 3 b/U (paper tier: 10 and 5 b/U); the plate Cp within 2 b is steady from about 3-4 b/U
@@ -105,7 +105,7 @@ class WaterJetCase(Case):
               minimum=0.0, exclusive_minimum=True),
         Param("gradient", "pgm1", "pressure-gradient model", kind=str,
               choices=cm.gradient_names()),
-        Param("stabilization", True, "stabilization (method.md 5) on/off", kind=bool),
+        Param("stabilization", True, "stabilization (docs/method.md 5) on/off", kind=bool),
         Param("alpha_s", 0.01, "stabilization coefficient", "", minimum=0.0, maximum=1.0),
         Param("stabilization_walls", True,
               "wall and dummy particles are neighbours in the stabilization sum", kind=bool),
@@ -328,7 +328,7 @@ class WaterJetCase(Case):
 
 
 def _analytic_check() -> CaseCheck:
-    """The free-streamline solution against method.md's table and its momentum balance."""
+    """The free-streamline solution against docs/method.md's table and its momentum balance."""
     table_err = float(np.max(np.abs(free_streamline_cp(TABLE_XB) - TABLE_CP)))
     x = np.linspace(0.0, 20.0, 200001)
     integral = 2.0 * float(np.trapezoid(free_streamline_cp(x), x))

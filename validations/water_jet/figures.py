@@ -116,7 +116,7 @@ def _plate_cp(records: list[dict[str, Any]], arrays: Callable, outdir: Path) -> 
                                                  bool(r["stabilization"])))
     for ax, g in zip(axes[0], grads, strict=True):
         ax.plot(x, free_streamline_cp(x), "k-", lw=2, label="free streamline (exact)")
-        ax.plot(TABLE_XB, TABLE_CP, "ko", ms=3, label="method.md table")
+        ax.plot(TABLE_XB, TABLE_CP, "ko", ms=3, label="docs/method.md table")
         for rec in order:
             a = arrays(rec["run_id"])
             if rec["gradient"] != g or "plate_cp" not in a:

@@ -1,4 +1,4 @@
-"""Geometry and problem of the plane water jet impinging on a flat plate (method.md 6c).
+"""Geometry and problem of the plane water jet impinging on a flat plate (docs/method.md 6c).
 
 Frame: the plate's wall line is y = 0, the jet axis is x = 0 and the jet flows along -y.
 

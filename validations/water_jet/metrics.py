@@ -1,4 +1,4 @@
-"""Reference solution and metrics of the impinging-jet case (method.md 6c).
+"""Reference solution and metrics of the impinging-jet case (docs/method.md 6c).
 
 * :func:`free_streamline_cp`: the plate pressure coefficient of the steady free-streamline
   (potential-flow) solution of a plane jet of width b hitting an infinite plate normally.
@@ -30,7 +30,7 @@ from mpsbench.physics.weights import get_weight
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-# method.md 6c: Cp at x/b = 0, 0.2, ..., 2.0 (used by the tests as an independent oracle)
+# docs/method.md 6c: Cp at x/b = 0, 0.2, ..., 2.0 (used by the tests as an independent oracle)
 TABLE_XB = np.round(np.arange(11) * 0.2, 10)
 TABLE_CP = np.array([1.000, 0.975, 0.902, 0.782, 0.628, 0.461, 0.309, 0.192, 0.112, 0.063, 0.035])
 
@@ -223,7 +223,7 @@ def penetrations(pos: FloatArray, kind: NDArray[np.int8], half_plate: float) -> 
 
 def stabilization_viscosity(weight: str, re_ratio: float, l0: float, alpha_s: float,
                             dt: float) -> float:
-    """Viscosity [m^2/s] the stabilization (method.md 5) adds to a smooth velocity field.
+    """Viscosity [m^2/s] the stabilization (docs/method.md 5) adds to a smooth velocity field.
 
     u_i <- u_i + (alpha_s l0 / n0) sum_j |W'_ij| (u_j - u_i) once per step; for a smooth field
     the sum is (1/4) sum_j |W'_ij| r_ij^2 lap(u) on an isotropic lattice, so per unit time it is

@@ -46,7 +46,7 @@ DEFAULT_ALPHA_S = 0.01
 
 
 def is_default_stabilization(r: dict[str, Any]) -> bool:
-    """alpha_s 0.01 with wall and dummy particles in the sum (method.md 5 defaults)."""
+    """alpha_s 0.01 with wall and dummy particles in the sum (docs/method.md 5 defaults)."""
     return r.get("alpha_s", DEFAULT_ALPHA_S) == DEFAULT_ALPHA_S and r.get(
         "stabilization_walls", True) is not False
 
