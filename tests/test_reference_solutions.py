@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.linalg
 from mpsbench.validations.hydrostatic import reference as hydro
+from mpsbench.validations.poiseuille import reference as poiseuille
 
 # ---------------------------------------------------------------- hydrostatic
 
@@ -36,3 +38,105 @@ def test_hydrostatic_balances_gravity_and_integrates_to_the_wall_force() -> None
 def test_hydrostatic_refuses_heights_outside_the_column(y: float) -> None:
     with pytest.raises(ValueError, match="outside the column"):
         hydro.pressure(y, height=0.6)
+
+
+# ---------------------------------------------------------------- Poiseuille
+
+MORRIS = poiseuille.Poiseuille()  # L = 1e-3 m, nu = 1e-6 m^2/s, F = 2e-4 m/s^2
+
+
+def test_poiseuille_steady_state_is_the_parabola() -> None:
+    # F L^2 / (8 nu) = 2e-4 * 1e-6 / 8e-6 = 2.5e-5 m/s; at L/4: F (L/4)(3L/4) / (2 nu) = 1.875e-5
+    assert MORRIS.u_max == pytest.approx(2.5e-5, rel=1e-15)
+    y = np.array([0.0, 2.5e-4, 5.0e-4, 7.5e-4, 1.0e-3])
+    hand = np.array([0.0, 1.875e-5, 2.5e-5, 1.875e-5, 0.0])
+    assert MORRIS.steady(y) == pytest.approx(hand, rel=1e-14, abs=1e-25)
+    # t -> infinity: 50 s is ~500 diffusion times L^2 / (pi^2 nu); no term is left
+    assert MORRIS.terms_needed(50.0) == 0
+    assert MORRIS.velocity(y, 50.0) == pytest.approx(hand, rel=1e-14, abs=1e-25)
+    # 5 s: the slowest mode is exp(-49) ~ 5e-22 of u_max, far below the default bound
+    assert MORRIS.velocity(y, 5.0) == pytest.approx(hand, rel=1e-12, abs=1e-20)
+
+
+def test_poiseuille_starts_from_rest() -> None:
+    y = np.linspace(0.0, MORRIS.gap, 11)
+    assert np.all(MORRIS.velocity(y, 0.0) == 0.0)
+    # The series itself at t = 0 (every mode undecayed) sums to the parabola: u = 0 within B.
+    n = MORRIS.terms_needed(0.0, rtol=1e-8)
+    assert np.max(np.abs(MORRIS.velocity(y, 0.0, n_terms=n))) <= MORRIS.truncation_bound(0.0, n)
+    # Just after the start the walls are not yet felt in the middle: u = F t.
+    t = 1e-9
+    assert MORRIS.velocity(5e-4, t) == pytest.approx(MORRIS.force * t, rel=1e-6)
+
+
+def test_poiseuille_interior_accelerates_freely_before_the_walls_are_felt() -> None:
+    # At t = 1e-4 s the diffusion length sqrt(nu t) = 1e-5 m is 1/25 of the distance to the
+    # nearer wall: the deficit below F t is ~erfc(12.5) ~ 1e-69, so u = F t = 2e-8 m/s exactly.
+    t = 1e-4
+    assert MORRIS.velocity([2.5e-4, 5e-4, 7.5e-4], t) == pytest.approx(
+        np.full(3, 2e-8), rel=1e-9
+    )
+
+
+def _poiseuille_finite_differences(cells: int, t: float) -> tuple[np.ndarray, np.ndarray]:
+    """u_t = nu u_yy + F, u = 0 at both plates and at t = 0: central differences on `cells`
+    uniform cells, integrated exactly in time, u(t) = A^-1 (exp(A t) - I) F."""
+    h = MORRIS.gap / cells
+    n = cells - 1
+    a = (MORRIS.nu / h**2) * (
+        np.diag(np.full(n, -2.0)) + np.diag(np.ones(n - 1), 1) + np.diag(np.ones(n - 1), -1)
+    )
+    u = np.linalg.solve(a, (scipy.linalg.expm(a * t) - np.eye(n)) @ np.full(n, MORRIS.force))
+    return h * np.arange(1, cells), u
+
+
+@pytest.mark.parametrize("t", [0.0225, 0.1125])  # s, profile times of validations/couette.py
+def test_poiseuille_series_is_the_limit_of_a_finite_difference_solution(t: float) -> None:
+    y_probe = np.array([0.25e-3, 0.5e-3])
+    errors, values = [], []
+    for cells in (64, 128):
+        y, u = _poiseuille_finite_differences(cells, t)
+        at = np.searchsorted(y, y_probe - 1e-12)
+        assert y[at] == pytest.approx(y_probe, rel=1e-12)
+        values.append(u[at])
+        errors.append(u[at] - MORRIS.velocity(y_probe, t))
+    # second order in h towards the series: the error falls by 4 when h halves ...
+    ratio = errors[0] / errors[1]
+    assert ratio == pytest.approx(np.full(2, 4.0), rel=0.01)
+    # ... and the Richardson extrapolation of the two grids meets the series to 1e-8 u_max
+    # (found 1e-9 to 6e-9; the 128-cell errors are 5e-6 to 2e-5 u_max, the series bound 1e-10).
+    richardson = (4.0 * values[1] - values[0]) / 3.0
+    assert np.max(np.abs(richardson - MORRIS.velocity(y_probe, t))) <= 1e-8 * MORRIS.u_max
+    assert 0.1 * MORRIS.u_max < MORRIS.velocity(5e-4, t) < 0.9 * MORRIS.u_max  # mid-transient
+
+
+@pytest.mark.parametrize("t", [1e-4, 0.0225, 0.1125])
+def test_poiseuille_truncation_bound_holds(t: float) -> None:
+    y = np.linspace(0.0, MORRIS.gap, 41)
+    reference = MORRIS.velocity(y, t, n_terms=MORRIS.terms_needed(t, rtol=1e-14) + 50)
+    for n in (0, 1, 2, 5, 10, 20):
+        err = np.max(np.abs(MORRIS.velocity(y, t, n_terms=n) - reference))
+        assert err <= MORRIS.truncation_bound(t, n) + 1e-14 * MORRIS.u_max
+    # the rule picks the fewest terms meeting the tolerance
+    n = MORRIS.terms_needed(t)
+    assert MORRIS.truncation_bound(t, n) <= 1e-10 * MORRIS.u_max
+    assert n == 0 or MORRIS.truncation_bound(t, n - 1) > 1e-10 * MORRIS.u_max
+    assert np.max(np.abs(MORRIS.velocity(y, t) - reference)) <= 1e-10 * MORRIS.u_max
+
+
+def test_poiseuille_needs_fewer_terms_later() -> None:
+    times = [0.0, 1e-9, 1e-6, 1e-4, 1e-2, 0.0225, 0.1, 1.0, 3.0]
+    counts = [MORRIS.terms_needed(t) for t in times]
+    assert counts == sorted(counts, reverse=True)
+    assert counts[-1] == 0 and MORRIS.terms_needed(0.0225) == 4
+
+
+def test_poiseuille_refuses_bad_input() -> None:
+    with pytest.raises(ValueError, match="outside the gap"):
+        MORRIS.velocity([0.0, 1.1e-3], 0.1)
+    with pytest.raises(ValueError, match="time must be >= 0"):
+        MORRIS.velocity(5e-4, -1.0)
+    with pytest.raises(ValueError, match="rtol"):
+        MORRIS.terms_needed(0.1, rtol=1e-16)
+    with pytest.raises(ValueError, match="nu must be positive"):
+        poiseuille.Poiseuille(nu=0.0)
