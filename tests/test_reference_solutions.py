@@ -8,11 +8,15 @@ Navier-Stokes equations, and the Ghia tables as verified against four public cop
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+
 import numpy as np
 import pytest
 import scipy.linalg
 from mpsbench.validations.hydrostatic import reference as hydro
 from mpsbench.validations.poiseuille import reference as poiseuille
+from mpsbench.validations.taylor_green.reference import TaylorGreen
 
 # ---------------------------------------------------------------- hydrostatic
 
@@ -140,3 +144,121 @@ def test_poiseuille_refuses_bad_input() -> None:
         MORRIS.terms_needed(0.1, rtol=1e-16)
     with pytest.raises(ValueError, match="nu must be positive"):
         poiseuille.Poiseuille(nu=0.0)
+
+
+# ---------------------------------------------------------------- Taylor-Green
+
+Field = Callable[[np.ndarray, np.ndarray, float], np.ndarray]
+
+
+def _d(f: Callable[[float], np.ndarray], h: float) -> np.ndarray:
+    """Fourth-order central first derivative of f at 0."""
+    return (8.0 * (f(h) - f(-h)) - (f(2 * h) - f(-2 * h))) / (12.0 * h)
+
+
+def _d2(f: Callable[[float], np.ndarray], h: float) -> np.ndarray:
+    """Fourth-order central second derivative of f at 0."""
+    return (16.0 * (f(h) + f(-h)) - (f(2 * h) + f(-2 * h)) - 30.0 * f(0.0)) / (12.0 * h * h)
+
+
+def _along(f: Field, x: np.ndarray, y: np.ndarray, t: float,
+           axis: str) -> Callable[[float], np.ndarray]:
+    """s -> f at (x, y, t) shifted by s along axis "x", "y" or "t"."""
+    if axis == "x":
+        return lambda s: f(x + s, y, t)
+    if axis == "y":
+        return lambda s: f(x, y + s, t)
+    return lambda s: f(x, y, t + s)
+
+
+def _navier_stokes_residuals(u: Field, v: Field, p: Field, rho0: float, nu: float,
+                             x: np.ndarray, y: np.ndarray, t: float
+                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Continuity and x/y momentum residuals by finite differences of the fields, and the
+    size of the viscous term; nothing of the closed form is used but point values."""
+    h, dt = 1e-3, 1e-3
+    div = _d(_along(u, x, y, t, "x"), h) + _d(_along(v, x, y, t, "y"), h)
+    uu, vv = u(x, y, t), v(x, y, t)
+    residuals, viscous = [], []
+    for f, axis in ((u, "x"), (v, "y")):
+        f_t = _d(_along(f, x, y, t, "t"), dt)
+        f_x = _d(_along(f, x, y, t, "x"), h)
+        f_y = _d(_along(f, x, y, t, "y"), h)
+        lap = _d2(_along(f, x, y, t, "x"), h) + _d2(_along(f, x, y, t, "y"), h)
+        grad_p = _d(_along(p, x, y, t, axis), h)
+        residuals.append(f_t + uu * f_x + vv * f_y + grad_p / rho0 - nu * lap)
+        viscous.append(nu * lap)
+    return div, residuals[0], residuals[1], np.maximum(np.abs(viscous[0]), np.abs(viscous[1]))
+
+
+def _tg_fields(tg: TaylorGreen) -> tuple[Field, Field, Field]:
+    return (lambda x, y, t: tg.velocity(x, y, t)[0], lambda x, y, t: tg.velocity(x, y, t)[1],
+            tg.pressure)
+
+
+@pytest.mark.parametrize("re", [100.0, 1000.0])
+def test_taylor_green_satisfies_navier_stokes(re: float) -> None:
+    tg = TaylorGreen(reynolds=re)
+    rng = np.random.default_rng(6)
+    x, y = rng.uniform(0.0, 1.0, (2, 200))
+    u, v, p = _tg_fields(tg)
+    for t in (0.0, 0.3, 1.0):
+        div, rx, ry, viscous = _navier_stokes_residuals(u, v, p, tg.rho0, tg.nu, x, y, t)
+        # scale of the smallest balanced term: nu |lap u| <= 8 pi^2 nu U e^{bt}, 0.08 at
+        # Re = 1000 against ~6 for convection; the residual must be far below it
+        scale = 8.0 * math.pi**2 * tg.nu * tg.amplitude(t)
+        assert np.max(viscous) == pytest.approx(scale, rel=0.05)
+        assert np.max(np.abs(div)) <= 1e-9 * 2 * math.pi * tg.amplitude(t)
+        assert np.max(np.abs(rx)) <= 1e-5 * scale
+        assert np.max(np.abs(ry)) <= 1e-5 * scale
+
+
+@pytest.mark.parametrize("re", [100.0, 1000.0])
+def test_taylor_green_residual_check_catches_wrong_fields(re: float) -> None:
+    """The residual test above can fail: a flipped pressure or a wrong decay rate leave residuals
+    some 1e5 times its tolerance (1e-5 of the viscous scale)."""
+    tg = TaylorGreen(reynolds=re)
+    x, y = np.random.default_rng(7).uniform(0.0, 1.0, (2, 200))
+    u, v, p = _tg_fields(tg)
+    scale = 8.0 * math.pi**2 * tg.nu * tg.amplitude(0.3)
+    wrong_p: Field = lambda x, y, t: -p(x, y, t)  # noqa: E731
+    _, rx, _, _ = _navier_stokes_residuals(u, v, wrong_p, tg.rho0, tg.nu, x, y, 0.3)
+    assert np.max(np.abs(rx)) > scale
+    slow_u: Field = lambda x, y, t: u(x, y, t / 2)  # noqa: E731 (decays at b / 2)
+    slow_v: Field = lambda x, y, t: v(x, y, t / 2)  # noqa: E731
+    slow_p: Field = lambda x, y, t: p(x, y, t / 2)  # noqa: E731
+    _, rx, _, _ = _navier_stokes_residuals(slow_u, slow_v, slow_p, tg.rho0, tg.nu, x, y, 0.3)
+    assert np.max(np.abs(rx)) > 0.3 * scale
+
+
+@pytest.mark.parametrize("re", [100.0, 1000.0])
+def test_taylor_green_kinetic_energy_decays_as_exp_2bt(re: float) -> None:
+    tg = TaylorGreen(reynolds=re, rho0=998.0)
+    n = 64  # midpoint rule: exact for these trigonometric polynomials on the periodic square
+    s = (np.arange(n) + 0.5) / n
+    x, y = np.meshgrid(s, s, indexing="ij")
+    b = -8.0 * math.pi**2 / re  # L = U = 1: nu = 1 / Re
+    e0 = 998.0 / 4.0  # rho0 U^2 L^2 / 4
+    for t in (0.0, 0.25, 1.0, 4.0):
+        u, v = tg.velocity(x, y, t)
+        integral = float(np.sum(0.5 * 998.0 * (u * u + v * v))) / n**2
+        assert integral == pytest.approx(e0 * math.exp(2.0 * b * t), rel=1e-12)
+        assert tg.kinetic_energy(t) == pytest.approx(integral, rel=1e-12)
+        assert tg.kinetic_energy_ratio(t) == pytest.approx(math.exp(2.0 * b * t), rel=1e-12)
+    # Re = 100: E halves by t = ln 2 / (16 pi^2 / 100) = 0.43894 s
+    if re == 100.0:
+        assert tg.kinetic_energy_ratio(0.43894058) == pytest.approx(0.5, rel=1e-7)
+
+
+def test_taylor_green_parameters_by_hand() -> None:
+    tg = TaylorGreen(reynolds=1000.0, speed=2.0, side=0.5)
+    assert tg.nu == pytest.approx(1e-3)
+    assert tg.decay_rate == pytest.approx(-8.0 * math.pi**2 * 1e-3 / 0.25)
+    # periodic, mean-free pressure, and u = -U at (0, L/4) at t = 0
+    u, v = tg.velocity([0.0, 0.5], [0.125, 0.625], 0.0)
+    assert u == pytest.approx([-2.0, -2.0]) and v == pytest.approx([0.0, 0.0], abs=1e-15)
+    s = (np.arange(32) + 0.5) / 64
+    xx, yy = np.meshgrid(s, s)
+    assert abs(float(np.mean(tg.pressure(xx, yy, 0.1)))) < 1e-12
+    with pytest.raises(ValueError, match="reynolds must be positive"):
+        TaylorGreen(reynolds=0.0)
