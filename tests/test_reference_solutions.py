@@ -8,12 +8,18 @@ Navier-Stokes equations, and the Ghia tables as verified against four public cop
 
 from __future__ import annotations
 
+import fnmatch
 import math
+import tomllib
 from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 import scipy.linalg
+from mpsbench.validations.cavity import reference as cavity
+from mpsbench.validations.experiments import DataFileError
 from mpsbench.validations.hydrostatic import reference as hydro
 from mpsbench.validations.poiseuille import reference as poiseuille
 from mpsbench.validations.taylor_green.reference import TaylorGreen
@@ -262,3 +268,161 @@ def test_taylor_green_parameters_by_hand() -> None:
     assert abs(float(np.mean(tg.pressure(xx, yy, 0.1)))) < 1e-12
     with pytest.raises(ValueError, match="reynolds must be positive"):
         TaylorGreen(reynolds=0.0)
+
+
+# ---------------------------------------------------------------- lid-driven cavity (Ghia 1982)
+
+# The values as verified against four public copies (validations/data/README.md), typed here
+# again so a change to the shipped files shows; table order, from the lid / right wall down.
+# Point numbers n on the 129 x 129 grid (the tables' first column, as copy A lists them):
+# the coordinate is (n - 1) / 128.
+GHIA_U_POINT = [129, 126, 125, 124, 123, 110, 95, 80, 65, 59, 37, 23, 14, 10, 9, 8, 1]
+GHIA_Y = [1.0000, 0.9766, 0.9688, 0.9609, 0.9531, 0.8516, 0.7344, 0.6172, 0.5000, 0.4531,
+          0.2813, 0.1719, 0.1016, 0.0703, 0.0625, 0.0547, 0.0000]
+GHIA_U = {
+    100: [1.00000, 0.84123, 0.78871, 0.73722, 0.68717, 0.23151, 0.00332, -0.13641, -0.20581,
+          -0.21090, -0.15662, -0.10150, -0.06434, -0.04775, -0.04192, -0.03717, 0.00000],
+    1000: [1.00000, 0.65928, 0.57492, 0.51117, 0.46604, 0.33304, 0.18719, 0.05702, -0.06080,
+           -0.10648, -0.27805, -0.38289, -0.29730, -0.22220, -0.20196, -0.18109, 0.00000],
+}
+GHIA_V_POINT = [129, 125, 124, 123, 122, 117, 111, 104, 65, 31, 30, 21, 13, 11, 10, 9, 1]
+GHIA_X = [1.0000, 0.9688, 0.9609, 0.9531, 0.9453, 0.9063, 0.8594, 0.8047, 0.5000, 0.2344,
+          0.2266, 0.1563, 0.0938, 0.0781, 0.0703, 0.0625, 0.0000]
+GHIA_V = {
+    100: [0.00000, -0.05906, -0.07391, -0.08864, -0.10313, -0.16914, -0.22445, -0.24533,
+          0.05454, 0.17527, 0.17507, 0.16077, 0.12317, 0.10890, 0.10091, 0.09233, 0.00000],
+    1000: [0.00000, -0.21388, -0.27669, -0.33714, -0.39188, -0.51550, -0.42665, -0.31966,
+           0.02526, 0.32235, 0.33075, 0.37095, 0.32627, 0.30353, 0.29012, 0.27485, 0.00000],
+}
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_ghia_loader_returns_the_verified_values() -> None:
+    u = cavity.u_vertical_centreline()
+    v = cavity.v_horizontal_centreline()
+    assert (u.coordinate_name, v.coordinate_name) == ("y", "x")
+    assert u.reynolds == v.reynolds == (100, 1000)
+    assert u.coordinate.tolist() == GHIA_Y and v.coordinate.tolist() == GHIA_X
+    for re in (100, 1000):
+        assert u[re].tolist() == GHIA_U[re]
+        assert v[re].tolist() == GHIA_V[re]
+    assert "Ghia" in u.source and "48(3):387-411" in v.source
+    y, u100 = u.ascending(100)
+    assert np.all(np.diff(y) > 0) and u100[0] == 0.0 and u100[-1] == 1.0
+    with pytest.raises(KeyError, match="no Re = 400 column"):
+        u[400]
+
+
+def test_ghia_coordinates_are_the_129_grid_nodes() -> None:
+    for coords, points in ((GHIA_Y, GHIA_U_POINT), (GHIA_X, GHIA_V_POINT)):
+        nodes = (np.array(points) - 1) / 128.0
+        assert np.max(np.abs(np.array(coords) - nodes)) <= 5e-5 + 1e-12  # printed to 4 decimals
+
+
+@pytest.mark.parametrize("component", ["u", "v"])
+def test_ghia_profiles_carry_no_net_flux(component: cavity.Component) -> None:
+    """Mass conservation in the closed cavity: nothing crosses a centreline on balance.  The
+    trapezoid rule over the 17 points leaves at most 0.0073; a sign error at 8 to 12 of the 17
+    points of a column would push it above 0.01 (validations/data/README.md)."""
+    profile = cavity.load_ghia(component)
+    for re in profile.reynolds:
+        s, f = profile.ascending(re)
+        flux = float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(s)))
+        assert abs(flux) < 0.01, (component, re, flux)
+
+
+def test_ghia_files_are_package_data() -> None:
+    with open(ROOT / "pyproject.toml", "rb") as fh:
+        globs = tomllib.load(fh)["tool"]["setuptools"]["package-data"]["mpsbench.validations"]
+    for name, _ in cavity.FILES.values():
+        rel = f"data/{name}.csv"
+        assert (ROOT / "validations" / rel).is_file()
+        assert any(fnmatch.fnmatch(rel, g) for g in globs), (rel, globs)
+
+
+def _shipped_lines(component: cavity.Component) -> list[str]:
+    name, _ = cavity.FILES[component]
+    return (ROOT / "validations" / "data" / f"{name}.csv").read_text(encoding="utf-8").splitlines()
+
+
+def _broken(tmp_path: Path, lines: list[str], name: str = "broken.csv") -> Path:
+    path = tmp_path / name
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def _first_data(lines: list[str]) -> int:
+    """Index of the first data row (the line after the column header)."""
+    return next(i for i, line in enumerate(lines) if not line.startswith("#")) + 1
+
+
+def test_ghia_loader_accepts_an_intact_copy(tmp_path: Path) -> None:
+    profile = cavity.load_ghia("v", _broken(tmp_path, _shipped_lines("v"), "copy.csv"))
+    assert profile[1000].tolist() == GHIA_V[1000]
+
+
+def test_ghia_loader_rejects_a_file_that_is_not_utf8(tmp_path: Path) -> None:
+    lines = _shipped_lines("u")
+    path = tmp_path / "latin1.csv"
+    text = "\n".join(lines).replace("Shin, C. T.", "Shin, C. T. (Universit\u00e4t)") + "\n"
+    path.write_bytes(text.encode("latin-1"))
+    with pytest.raises(DataFileError, match=r"latin1\.csv: not UTF-8 text \(byte 0xe4 on line 1\)"):
+        cavity.load_ghia("u", path)
+
+
+def test_ghia_loader_rejects_a_byte_order_mark(tmp_path: Path) -> None:
+    path = tmp_path / "bom.csv"
+    path.write_bytes(b"\xef\xbb\xbf" + "\n".join(_shipped_lines("u")).encode("utf-8"))
+    with pytest.raises(DataFileError, match="bom.csv: starts with a UTF-8 byte-order mark"):
+        cavity.load_ghia("u", path)
+
+
+def test_ghia_loader_rejects_a_missing_column(tmp_path: Path) -> None:
+    lines = _shipped_lines("v")
+    start = _first_data(lines) - 1  # the column header
+    cut = [",".join(line.split(",")[:2]) if i >= start else line for i, line in enumerate(lines)]
+    cut = [line.replace(", Re1000=1", "") for line in cut]
+    with pytest.raises(DataFileError, match="broken.csv: missing column 'Re1000'"):
+        cavity.load_ghia("v", _broken(tmp_path, cut))
+
+
+def test_ghia_loader_rejects_a_truncated_row(tmp_path: Path) -> None:
+    lines = _shipped_lines("u")
+    lines[-1] = lines[-1][: lines[-1].rindex(",")]  # the file ends mid-row: "0.0000,0.00000"
+    with pytest.raises(DataFileError, match="broken.csv: data row 18 has 2 values, expected 3"):
+        cavity.load_ghia("u", _broken(tmp_path, lines))
+
+
+def test_ghia_loader_rejects_a_file_cut_between_rows(tmp_path: Path) -> None:
+    lines = _shipped_lines("u")[:-3]
+    with pytest.raises(DataFileError, match="broken.csv: 14 data rows, expected 17"):
+        cavity.load_ghia("u", _broken(tmp_path, lines))
+
+
+@pytest.mark.parametrize(
+    ("component", "row", "new", "message"),
+    [
+        ("u", 3, "0.9788,0.78871,0.57492", r"monotone \(data rows 4 and 5: 0.9688 then 0.9788\)"),
+        ("v", 0, "1.0100,0.00000,0.00000", "coordinate 'x' outside \\[0, 1\\]"),
+        ("u", 0, "1.0000,0.99000,1.00000", "Re100: u = 0.99 at the lid y = 1"),
+        ("v", 16, "0.0000,0.00000,0.00100", "Re1000: v = 0.001 at the left wall x = 0"),
+        ("u", 16, "0.0010,0.00000,0.00000", "runs from 1 to 0.001"),
+        ("u", 5, "0.8516,0.23151,nan", "data row 7, column 'Re1000': 'nan' is not a finite"),
+    ],
+)
+def test_ghia_loader_rejects_wrong_values(tmp_path: Path, component: cavity.Component, row: int,
+                                          new: str, message: str) -> None:
+    lines = _shipped_lines(component)
+    lines[_first_data(lines) + row] = new
+    with pytest.raises(DataFileError, match=message) as info:
+        cavity.load_ghia(component, _broken(tmp_path, lines))
+    assert "broken.csv" in str(info.value)
+    assert isinstance(info.value, ValueError)
+
+
+def test_ghia_loader_rejects_a_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(DataFileError, match="does not exist"):
+        cavity.load_ghia("u", tmp_path / "absent.csv")
+    with pytest.raises(ValueError, match="component must be 'u' or 'v'"):
+        not_a_component: Any = "w"
+        cavity.load_ghia(not_a_component)
