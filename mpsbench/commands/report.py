@@ -5,7 +5,9 @@ checks and report with the case's current code (so a plotting fix needs no new r
 top-level results, summary.md, index.html and figures/.  A case whose code is unavailable (or
 with ``--from-files``) is shown from the files an earlier render left.  Works on a folder from
 ``mpsbench validate all`` and on a single case folder from ``mpsbench validate CASE``.
-Exit status: 0 rendered, 2 DIR is not a results folder.
+Exit status: 0 rendered, 2 DIR is not a results folder.  With ``--strict-claims`` the exit
+status is the verdict, as ``mpsbench validate --strict-claims`` would give it: 1 when a gate
+fails or a claim of the paper is refuted.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from mpsbench.results.folder import ENV_COLUMNS, case_folders, read_manifest, wr
 from mpsbench.results.sections import (
     CaseSection,
     case_from_disk,
+    claim_counts,
     safe_render_case,
     solver_order,
     verdict,
@@ -39,6 +42,8 @@ def register(sub: Any) -> None:
     p.add_argument("dir", help="a folder written by 'mpsbench validate'")
     p.add_argument("--from-files", action="store_true",
                    help="do not call the cases' table/figure code; reuse the files on disk")
+    p.add_argument("--strict-claims", action="store_true",
+                   help="exit 1 when a gate fails or a claim of the paper is refuted")
     p.set_defaults(func=cmd_report)
 
 
@@ -76,13 +81,19 @@ def cmd_report(args: argparse.Namespace) -> int:
     order = [str(e.get("name")) for e in manifest.get("cases", []) if e.get("name") in sections]
     ordered = [sections[n] for n in order] + [s for n, s in sections.items() if n not in order]
     _fill_manifest(manifest, ordered)
+    manifest["strict_claims"] = bool(args.strict_claims)
     ok = write_top_level(out, ordered, manifest, params, write_results=not single)
     for sec in ordered:
         print(f"{verdict(sec.passed)} {sec.name}" + (f": {sec.error}" if sec.error else ""))
-    print(f"{verdict(ok)}: {sum(s.passed for s in ordered)}/{len(ordered)} cases pass")
+    claims = [c for s in ordered for so in s.solvers for c in so.rendered.claims]
+    counts = f"; claims: {claim_counts(claims)}" if claims else ""
+    print(f"{verdict(ok)}: {sum(s.passed for s in ordered)}/{len(ordered)} cases pass their "
+          f"gates{counts}")
+    for c in (c for s in ordered for c in s.refuted):
+        print(f"  refuted {c.claim}: {c.name}")
     print(f"summary: {out / 'summary.md'}")
     print(f"index:   {out / 'index.html'}")
-    return 0
+    return 1 if args.strict_claims and not ok else 0
 
 
 def _fill_manifest(manifest: dict[str, Any], sections: list[CaseSection]) -> None:

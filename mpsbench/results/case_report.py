@@ -5,9 +5,13 @@ Layout of a case folder::
     results.csv, results.json   one row per run (common columns + parameters + metrics)
     tables/<name>.csv|.md       the case's tables
     figures/<name>.png          the case's figures
-    checks.json                 pass/fail of each of the case's checks
+    checks.json                 each gate (pass/fail) and claim (supported/refuted/inconclusive)
     findings.md                 the case's findings in plain words (also in report.md)
-    report.md                   findings in plain words, checks, tables, figure links
+    report.md                   findings in plain words, claims, gates, tables, figure links
+
+A case with refinement sets (``Case.refinements``) also gets the table
+``numerical_uncertainty`` (one row per set: levels, convergence, order, u_num; docs/method.md
+section 9).
 """
 
 from __future__ import annotations
@@ -20,6 +24,8 @@ from typing import Any
 import pandas as pd
 
 from mpsbench.cases import Case, CaseCheck
+from mpsbench.cases.checks import claims as claims_of
+from mpsbench.cases.checks import gates as gates_of
 from mpsbench.results.records import COMMON_COLUMNS, atomic_write_text, load_arrays
 
 
@@ -59,8 +65,7 @@ class Rendered:
         checks: list[CaseCheck] = []
         try:
             raw = json.loads((folder / "checks.json").read_text())
-            checks = [CaseCheck(str(c["name"]), c.get("passed"), str(c.get("detail", "")))
-                      for c in raw]
+            checks = [CaseCheck.from_json(c) for c in raw]
         except (OSError, ValueError, TypeError, KeyError):
             pass
         tables = {p.stem: pd.read_csv(p, index_col=0)
@@ -75,9 +80,22 @@ class Rendered:
         return sum(1 for r in self.records if r.get("status") == "completed")
 
     @property
+    def gates(self) -> list[CaseCheck]:
+        return gates_of(self.checks)
+
+    @property
+    def claims(self) -> list[CaseCheck]:
+        return claims_of(self.checks)
+
+    @property
+    def refuted(self) -> list[CaseCheck]:
+        """Claims the records refute (they fail the run only with --strict-claims)."""
+        return [c for c in self.claims if c.passed is False]
+
+    @property
     def failures(self) -> list[str]:
-        """Why this set fails (empty when it passes)."""
-        out = [f"check failed: {c.name}" for c in self.checks if c.passed is False]
+        """Why this set fails its gates (empty when it passes; refuted claims are not here)."""
+        out = [f"gate failed: {c.name}" for c in self.gates if c.passed is False]
         if not self.records:
             out.append("no runs")
         elif not self.completed:
@@ -121,6 +139,10 @@ def render_case_outputs(
     atomic_write_text(outdir / "results.json", json.dumps(records, indent=1, default=str))
 
     tables = case.tables(records) if records else {}
+    if records and case.refinements and "numerical_uncertainty" not in tables:
+        unc = case.uncertainty(records).table()
+        if not unc.empty:
+            tables["numerical_uncertainty"] = unc
     tdir = outdir / "tables"
     tdir.mkdir(exist_ok=True)
     for name, table in tables.items():
@@ -135,12 +157,9 @@ def render_case_outputs(
     figures = case.figures(records, lambda rid: load_arrays(source, rid), fdir) if records else []
     figures = [Path(f) for f in figures]
 
-    checks = case.checks(records) if records else []
-    atomic_write_text(
-        outdir / "checks.json",
-        json.dumps([{"name": c.name, "passed": c.passed, "detail": c.detail} for c in checks],
-                   indent=1),
-    )
+    checks = (case.checks(records) + case.claims(records)) if records else []
+    atomic_write_text(outdir / "checks.json",
+                      json.dumps([c.to_json() for c in checks], indent=1))
     findings = case.findings(records) if records else ""
     (outdir / "findings.md").write_text(findings.strip() + "\n" if findings.strip() else "")
     (outdir / "report.md").write_text(render_report(case, records, checks, tables, figures, outdir))
@@ -148,8 +167,21 @@ def render_case_outputs(
 
 
 def check_lines(checks: list[CaseCheck]) -> list[str]:
-    mark = {True: "PASS", False: "FAIL", None: "n/a "}
-    return [f"- **{mark[c.passed]}** {c.name}: {c.detail}" for c in checks]
+    """Markdown list items, one per gate (claims are left out: :func:`claim_lines`)."""
+    return [f"- **{c.verdict}** {c.name}: {c.detail}" for c in gates_of(checks)]
+
+
+def claim_lines(checks: list[CaseCheck]) -> list[str]:
+    """Markdown list items, one per claim: verdict, id, statement, rule, evidence."""
+    return [f"- **{c.verdict}** {c.claim}: {c.name} Rule: {c.rule} Evidence: {c.detail}"
+            for c in claims_of(checks)]
+
+
+def plain_check_lines(checks: list[CaseCheck]) -> list[str]:
+    """The same for a terminal: no Markdown markup."""
+    out = [f"{c.verdict:<4} {c.name}: {c.detail}" for c in gates_of(checks)]
+    out += [f"claim {c.claim} {c.verdict}: {c.name} ({c.detail})" for c in claims_of(checks)]
+    return out
 
 
 def render_report(
@@ -174,8 +206,13 @@ def render_report(
     findings = case.findings(records) if records else ""
     if findings:
         lines += ["## Findings", "", findings.strip(), ""]
-    if checks:
-        lines += ["## Checks", "", *check_lines(checks), ""]
+    if claims_of(checks):
+        lines += ["## Claims", "", "The paper's statements tested as hypotheses "
+                  "(docs/method.md section 8); they do not decide the exit status.", "",
+                  *claim_lines(checks), ""]
+    if gates_of(checks):
+        lines += ["## Gates", "", "These decide the exit status (docs/method.md section 8).", "",
+                  *check_lines(checks), ""]
     for name, table in tables.items():
         lines += [f"## Table: {name}", "", markdown_table(table), f"(also `tables/{name}.csv`)", ""]
     if figures:

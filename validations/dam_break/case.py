@@ -48,7 +48,8 @@ from typing import Any
 
 import numpy as np
 
-from mpsbench.cases import Case, CaseCheck, CaseRun, Grid, Param
+from mpsbench.cases import Case, CaseCheck, CaseRun, Grid, Param, RefinementGrid
+from mpsbench.cases.refinement import SPACE, TIME, Refinement
 from mpsbench.physics.config import FlowPhysics, Models, TimeStepping
 from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
 from mpsbench.physics.particles import Box, Kind, Particles, block, tank
@@ -168,10 +169,13 @@ KO, LOB = "koshizuka-oka", "lobovsky"
 TIERS: dict[str, list[Grid]] = {
     "smoke": [
         {"geometry": [KO], "variant": ["wc-mps", "iwc-mps"], "l0": [0.0146]},
+        RefinementGrid(geometry=[KO], variant=["iwc-mps"], l0=[0.0146], cfl=[0.1]),
         {"geometry": [LOB], "variant": ["wc-mps", "iwc-mps"], "l0": [0.025]},
     ],
     "quick": [
         {"geometry": [KO], "variant": ["wc-mps", "iwc-mps"], "l0": [0.0073, 0.005]},
+        # the dt refinement of the headline runs at l0 = 5 mm (docs/method.md section 9)
+        RefinementGrid(geometry=[KO], variant=["wc-mps", "iwc-mps"], l0=[0.005], cfl=[0.1]),
         {"geometry": [KO], "variant": ["iwc-mps"], "stabilization_walls": [False], "l0": [0.005]},
         {"geometry": [LOB], "variant": ["wc-mps", "iwc-mps"], "l0": [0.02, 0.01]},
     ],
@@ -184,6 +188,15 @@ TIERS: dict[str, list[Grid]] = {
          "collision": [True], "end_tstar": [7.0]},
     ],
 }
+
+# u_num of the validation metrics (docs/method.md section 9): in l0 at fixed cfl (dt shrinks
+# with l0) and in cfl.  Two levels use order 1 (WC-MPS on a moving, irregular particle cloud).
+_VALIDATED = ("front_rms_error", "front_mean_offset", "front_arrival_T", "height_rms_error",
+              "height_mean_offset", *(f"peak_p_sensor{k}" for k in range(1, 5)))
+REFINEMENTS = (
+    Refinement("l0", _VALIDATED, SPACE, order=1.0, ignore=("vtu",)),
+    Refinement("cfl", _VALIDATED, TIME, order=1.0, ignore=("vtu",)),
+)
 
 METRICS = {
     "column_width": "a, simulated column width nx l0 [m]",
@@ -397,12 +410,14 @@ class DamBreakCase(Case):
     tiers = TIERS
     metrics = METRICS
     compare = COMPARE
-    headline = "surge_front_errors"
+    headline = "surge_front_with_u_num"
+    refinements = REFINEMENTS
 
-    def expand(self, tier: str, overrides: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    def expand(self, tier: str, overrides: dict[str, Any] | None = None, *,
+               part: str = "all") -> list[dict[str, Any]]:
         given = set(overrides or {})
         out, seen = [], set()
-        for params in super().expand(tier, overrides):
+        for params in super().expand(tier, overrides, part=part):
             p = resolve(params, given)
             key = tuple(sorted((k, repr(v)) for k, v in p.items()))
             if key not in seen:
@@ -416,14 +431,19 @@ class DamBreakCase(Case):
         return execute_lobovsky(params, solver)
 
     def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
-        from .report import checks
+        from .analysis import gates
 
-        return checks(records)
+        return gates(records)
+
+    def claims(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
+        from .analysis import claims
+
+        return claims(records, self.uncertainty(records))
 
     def tables(self, records: list[dict[str, Any]]) -> dict[str, Any]:
-        from .report import tables
+        from .analysis import tables
 
-        return tables(records)
+        return tables(records, self.uncertainty(records))
 
     def figures(self, records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]],
                 outdir: Path) -> list[Path]:
@@ -432,9 +452,9 @@ class DamBreakCase(Case):
         return figures(records, arrays, outdir)
 
     def findings(self, records: list[dict[str, Any]]) -> str:
-        from .report import findings
+        from .analysis import findings
 
-        return findings(records)
+        return findings(records, self.uncertainty(records))
 
 
 CASE = DamBreakCase()

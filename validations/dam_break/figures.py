@@ -14,10 +14,10 @@ from mpsbench.physics.particles import Particles
 from mpsbench.run.probes import write_vtu
 
 from .. import experiments
-from .report import KO, LOB, _num, _ok, label
+from .analysis import KO, LOB, _num, _ok, label
 
 DEFAULT_MODELS = {"weight": "wf2", "re_ratio": 2.1, "gradient": "pgm1", "re_ratio_laplacian": 0.0,
-                  "gate_delay": 0.0, "stabilization_walls": True}
+                  "gate_delay": 0.0, "stabilization_walls": True, "cfl": 0.2}
 
 
 def _pick(records: list[dict[str, Any]], geometry: str, variant: str) -> dict[str, Any] | None:
