@@ -45,6 +45,7 @@ from mpsbench.run.runner import run
 
 from . import analysis as wja
 from . import figures as figs
+from . import findings as wjf
 from .geometry import JetGeometry, build_problem, plate_points
 from .metrics import (
     FrameMeasures,
@@ -313,7 +314,7 @@ class WaterJetCase(Case):
         return figs.figures(records, arrays, outdir)
 
     def findings(self, records: list[dict[str, Any]]) -> str:
-        return wja.findings(records, self.uncertainty(records))
+        return wjf.findings(records, self.uncertainty(records))
 
 
 CASE = WaterJetCase()
