@@ -320,7 +320,8 @@ def _c5(records: list[dict[str, Any]]) -> CaseCheck:
 # ---------------------------------------------------------------------- tables
 def headline_table(records: list[dict[str, Any]], unc: NumericalUncertainty) -> pd.DataFrame:
     """The acceptance run and its unstabilized twin: the plate and noise measures with their
-    u_num (l0 and cfl refinement sets; "not converged" where a sequence is not monotone)."""
+    u_num (l0 and cfl refinement sets; "not converged" where a sequence is not monotone).  The
+    penetration counts are in the ``noise`` table and the gate."""
     rows = []
     for on in (r for r in completed(records) if is_acceptance(r)):
         for run, state in ((twin(records, on), "off"), (on, "on")):
@@ -328,7 +329,6 @@ def headline_table(records: list[dict[str, Any]], unc: NumericalUncertainty) -> 
                 continue
             row: dict[str, Any] = {"model": label(run), "stabilization": state}
             row.update({m: unc.of(run, m).text() for m in HEADLINE_METRICS})
-            row["penetrations"] = run.get("penetrations")
             rows.append(row)
     return pd.DataFrame(rows).set_index(["model", "stabilization"]) if rows else pd.DataFrame()
 
