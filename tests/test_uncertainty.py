@@ -1,4 +1,5 @@
-"""GCI, observed order and validation verdicts on constructed sequences (docs/method.md 9)."""
+"""GCI, observed order and validation verdicts on constructed sequences, refinement sets in
+constructed records, and the model records of a case with refinement grids (docs/method.md 9)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,9 @@ import math
 
 import pytest
 
+from mpsbench.cases import Case, Param, RefinementGrid
 from mpsbench.cases import uncertainty as un
+from mpsbench.cases.refinement import SPACE, TIME, NumericalUncertainty, Refinement
 
 
 def sequence(f0: float, c: float, p: float, steps: list[float]) -> list[float]:
@@ -120,3 +123,67 @@ def test_validation_verdicts_on_constructed_cases() -> None:
     assert "not measured" in nm.describe()
     with pytest.raises(ValueError):
         un.validation(math.nan, 1.0, 0.1, 0.1)
+
+
+# --------------------------------------------------------------------------- refinement sets
+
+PARAMS = ["model", "l0", "dt", "check"]
+
+
+def record(model: str, l0: float, dt: float, value: float, check: bool = False) -> dict:
+    return {"model": model, "l0": l0, "dt": dt, "check": check, "e": value, "solver": "s",
+            "status": "completed", "tier": "quick", "run_id": f"{model}-{l0}-{dt}-{check}"}
+
+
+def test_sets_are_groups_that_differ_only_in_the_refined_parameter() -> None:
+    records = [record("a", h, 0.1, 1 + h**2) for h in (0.1, 0.2, 0.4)]  # order 2 in l0
+    records += [record("a", 0.1, dt, 1.01 + (dt - 0.1)) for dt in (0.05, 0.025)]  # dt, order 1
+    records += [record("b", 0.1, 0.1, 5.0), record("b", 0.2, 0.1, 5.0, check=True)]
+    records.append({**record("a", 0.3, 0.1, 9.0), "status": "diverged"})
+    unc = NumericalUncertainty(records, [
+        Refinement("l0", ("e",), SPACE, order=2.0, ignore=("check",)),
+        Refinement("dt", ("e",), TIME, order=1.0),
+    ], PARAMS)
+    table = unc.table()
+    assert len(table) == 3 and sorted(table["convergence"]) == ["monotone", "monotone",
+                                                                  "unchanged"]
+    fine = unc.of("a-0.1-0.1-False", "e")
+    # l0: three levels, observed order 2, u = 1.25 |f1 - 1| = 1.25 h^2; dt: dt = 0.1 is the
+    # coarsest member of {0.025, 0.05, 0.1}: u = 1.25 |f - f_ext| with f_ext = 1.01
+    assert fine.parts["l0"].convergence.order == pytest.approx(2.0)
+    assert fine.component("l0") == pytest.approx(1.25 * 0.01)
+    assert fine.parts["dt"].convergence.kind == "monotone"
+    assert fine.component("dt") == pytest.approx(1.25 * 0.1)
+    assert fine.u == pytest.approx(math.hypot(1.25 * 0.01, 1.25 * 0.1))
+    assert fine.text().endswith("(l0+dt)") and "±" in fine.text()
+    coarse = unc.of("a-0.4-0.1-False", "e")
+    assert coarse.u == pytest.approx(1.25 * 0.16) and coarse.kinds() == "l0"
+    # runs that differ only in an ignored parameter are one set; equal values: u_num 0
+    assert unc.of("b-0.1-0.1-False", "e").u == 0.0
+    # a run in no set, and one not converged
+    assert unc.of(record("c", 0.1, 0.1, 1.0), "e").text() == "1 (u_num not measured)"
+    wobble = [record("w", h, 0.1, v) for h, v in ((0.1, 1.0), (0.2, 1.1), (0.4, 0.95))]
+    nc = NumericalUncertainty(wobble, [Refinement("l0", ("e",), SPACE)], PARAMS)
+    w = nc.of("w-0.1-0.1-False", "e")
+    assert w.u is None and w.status == "not converged"
+    assert w.text() == "1 (not converged in l0)" and w.u_text() == "not converged"
+
+
+class Tiny(Case):
+    name = "tiny"
+    params = (Param("model", "a", kind=str), Param("l0", 0.1), Param("dt", 0.1))
+    tiers = {"quick": [{"model": ["a", "b"], "l0": [0.1, 0.2]},
+                       RefinementGrid(model=["a"], l0=[0.05, 0.1])]}
+
+
+def test_model_records_leave_out_the_refinement_runs() -> None:
+    case = Tiny()
+    assert len(case.expand("quick")) == 5
+    assert len(case.expand("quick", part="model")) == 4
+    assert [p["l0"] for p in case.expand("quick", part="refinement")] == [0.05, 0.1]
+    records = [{**p, "tier": "quick", "status": "completed"} for p in case.expand("quick")]
+    kept = case.model_records(records)
+    assert len(kept) == 4 and all(r["l0"] != 0.05 for r in kept)  # a / 0.1 is in both grids
+    # a run made with --set (here dt = 0.05) matches no refinement grid and stays
+    other = {"model": "a", "l0": 0.05, "dt": 0.05, "tier": "quick", "status": "completed"}
+    assert case.model_records([other]) == [other]
