@@ -12,15 +12,6 @@ from pathlib import Path
 from typing import Any
 
 from mpsbench.errors import UsageError
-from mpsbench.results.compare import (
-    CompareError,
-    changes_frame,
-    compare,
-    fmt_value,
-    load_results,
-    render_markdown,
-    summary_line,
-)
 
 ORDER = 40
 
@@ -48,6 +39,17 @@ def register(sub: Any) -> None:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
+    # imported here, not at the top: pandas would slow down 'mpsbench --help'
+    from mpsbench.results.compare import (
+        CompareError,
+        changes_frame,
+        compare,
+        fmt_value,
+        load_results,
+        render_markdown,
+        summary_line,
+    )
+
     for name in ("rtol", "atol"):
         value = getattr(args, name)
         if value is not None and not value >= 0:

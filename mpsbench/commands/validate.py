@@ -20,19 +20,29 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from mpsbench.cases import CASES, TIERS, Case, case_order, get_case
 from mpsbench.errors import UsageError
-from mpsbench.results.case_report import check_lines
-from mpsbench.results.folder import MANIFEST, write_top_level
-from mpsbench.results.records import Task, atomic_write_text, environment
-from mpsbench.results.sections import CaseSection, render_case, safe_render_case, verdict
-from mpsbench.results.sweep import plan, print_progress, run_tasks
-from mpsbench.run.protocol import SOLVERS
+
+# The heavy modules (numpy, pandas, scipy behind the cases and results) are imported inside
+# the functions that use them, so 'mpsbench --help' and '--version' stay fast.
+if TYPE_CHECKING:
+    from mpsbench.cases import Case
+    from mpsbench.results.records import Task
+    from mpsbench.results.sections import CaseSection
 
 ORDER = 30
 MAX_AUTO_JOBS = 4
+
+
+def _tier(value: str) -> str:
+    """``--tier``: checked when parsed, without importing the cases to build the parser."""
+    from mpsbench.cases import TIERS
+
+    if value not in TIERS:
+        raise argparse.ArgumentTypeError(
+            f"{value!r} is not allowed: one of {', '.join(TIERS)}")
+    return value
 
 
 def register(sub: Any) -> None:
@@ -47,7 +57,7 @@ def register(sub: Any) -> None:
     p.add_argument("--list", action="store_true", help="list the registered cases and exit")
     p.add_argument("--solver", action="append", default=None, metavar="NAME",
                    help="solver backend (repeatable; default: reference)")
-    p.add_argument("--tier", default="quick", choices=TIERS,
+    p.add_argument("--tier", default="quick", type=_tier, metavar="{smoke,quick,paper}",
                    help="smoke (seconds, for CI), quick (default, minutes) or paper (full grid)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE[,VALUE...]",
                    help="override a parameter for every run; a comma list sweeps it "
@@ -88,6 +98,9 @@ def default_all_out(tier: str, root: Path = Path("reports")) -> Path:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    from mpsbench.cases import CASES, case_order, get_case
+    from mpsbench.run.protocol import SOLVERS
+
     if args.list:
         for name in case_order(CASES.names()):
             try:
@@ -111,6 +124,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def _manifest(args: argparse.Namespace, solvers: list[str], jobs: int) -> dict[str, Any]:
+    from mpsbench.results.records import environment
+
     return {
         "command": " ".join(["mpsbench validate", args.case, "--tier", args.tier]
                             + [f"--solver {s}" for s in solvers] + [f"--jobs {jobs}"]),
@@ -121,6 +136,12 @@ def _manifest(args: argparse.Namespace, solvers: list[str], jobs: int) -> dict[s
 
 
 def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
+    from mpsbench.cases import get_case
+    from mpsbench.results.folder import MANIFEST, write_top_level
+    from mpsbench.results.records import atomic_write_text
+    from mpsbench.results.sections import render_case
+    from mpsbench.results.sweep import plan, print_progress, run_tasks
+
     case = get_case(args.case)
     overrides = parse_overrides(case, args.set)
     tasks = plan(case, solvers, args.tier, overrides)
@@ -143,6 +164,12 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
 
 
 def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
+    from mpsbench.cases import CASES, case_order, get_case
+    from mpsbench.results.folder import MANIFEST, write_top_level
+    from mpsbench.results.records import atomic_write_text
+    from mpsbench.results.sections import CaseSection, safe_render_case, verdict
+    from mpsbench.results.sweep import plan, print_progress, run_tasks
+
     out = Path(args.out) if args.out else default_all_out(args.tier)
     jobs = args.jobs or max(1, min(os.cpu_count() or 1, MAX_AUTO_JOBS))
     manifest = _manifest(args, solvers, jobs)
@@ -207,6 +234,9 @@ def heavy_first(tasks: list[Task]) -> list[Task]:
 
 
 def print_verdicts(sections: list[CaseSection]) -> None:
+    from mpsbench.results.case_report import check_lines
+    from mpsbench.results.sections import verdict
+
     for sec in sections:
         if sec.error:
             print(f"FAIL {sec.name}: {sec.error}")
