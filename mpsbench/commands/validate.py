@@ -57,7 +57,7 @@ def register(sub: Any) -> None:
     p.add_argument("--list", action="store_true", help="list the registered cases and exit")
     p.add_argument("--solver", action="append", default=None, metavar="NAME",
                    help="solver backend (repeatable; default: reference)")
-    p.add_argument("--tier", default="quick", type=_tier, metavar="{smoke,quick,paper}",
+    p.add_argument("--tier", default="quick", type=_tier, metavar="TIER",
                    help="smoke (seconds, for CI), quick (default, minutes) or paper (full grid)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE[,VALUE...]",
                    help="override a parameter for every run; a comma list sweeps it "
