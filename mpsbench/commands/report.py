@@ -87,7 +87,7 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 def _fill_manifest(manifest: dict[str, Any], sections: list[CaseSection]) -> None:
     """A folder without manifest.json (or an old one): take tier, solvers, env from the records."""
-    from mpsbench.results.folder import ENV_COLUMNS
+    from mpsbench.results.records import ENV_COLUMNS
     from mpsbench.results.sections import solver_order
 
     records = [r for s in sections for r in s.records]

@@ -40,8 +40,9 @@ def _tier(value: str) -> str:
     from mpsbench.cases import TIERS
 
     if value not in TIERS:
+        # argparse's own wording for choices=, which this replaces
         raise argparse.ArgumentTypeError(
-            f"{value!r} is not allowed: one of {', '.join(TIERS)}")
+            f"invalid choice: {value!r} (choose from {', '.join(map(repr, TIERS))})")
     return value
 
 
@@ -131,7 +132,7 @@ def _manifest(args: argparse.Namespace, solvers: list[str], jobs: int) -> dict[s
                             + [f"--solver {s}" for s in solvers] + [f"--jobs {jobs}"]),
         "case": args.case, "tier": args.tier, "solvers": solvers, "jobs": jobs,
         "started": _dt.datetime.now().isoformat(timespec="seconds"),
-        "environment": environment(), "cases": [],
+        "environment": environment(solvers), "cases": [],
     }
 
 
