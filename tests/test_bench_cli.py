@@ -173,6 +173,24 @@ def test_pytest_benchmark_reads_the_history(tmp_path: Path) -> None:
     assert "bench[toy-1000]" in proc.stdout
 
 
+@pytest.mark.slow  # runs one benchmark of the suite (a rebuild at 10k particles)
+def test_benchmark_suite_stores_provenance(tmp_path: Path) -> None:
+    root = Path(__file__).resolve().parent
+    proc = subprocess.run(
+        [sys.executable, "-m", "pytest", str(root / "benchmarks" / "test_bench_numba.py"),
+         "-k", "neighbour_rebuild and reference and 10k", "--benchmark-only",
+         "--benchmark-autosave", f"--benchmark-storage=file://{tmp_path}", "-q",
+         "-p", "no:cacheprovider"],
+        capture_output=True, text=True, timeout=600, check=False, cwd=root.parent)
+    assert proc.returncode == 0, proc.stdout[-2000:]
+    (path,) = tmp_path.glob("*/0001_*.json")
+    saved = json.loads(path.read_text())
+    assert saved["commit_info"]["id"] and "dirty" in saved["commit_info"]
+    env = saved["machine_info"]["mpsbench"]
+    assert set(ENV_COLUMNS) - {"solver_commit"} <= set(env) and "reference" in env["solvers"]
+    assert saved["benchmarks"][0]["extra_info"]["solver"] == "reference"
+
+
 def test_slowdown_rule() -> None:
     def doc(rate: float, q1: float, q3: float) -> dict[str, Any]:
         return {"records": [{"solver": "s", "n": 1, "particle_steps_per_s": rate,
