@@ -34,3 +34,11 @@ def test_every_common_and_environment_column_is_documented() -> None:
     section = _section(DOC.read_text(), "Columns of every record")
     missing = [n for n in (*COMMON_COLUMNS, *ENV_COLUMNS) if f"`{n}`" not in section]
     assert not missing, f"not in docs/columns.md, 'Columns of every record': {missing}"
+
+
+def test_every_bench_record_field_is_documented() -> None:
+    from mpsbench.run.bench import RECORD_FIELDS
+
+    section = _section(DOC.read_text(), "mpsbench bench")
+    missing = [n for n in RECORD_FIELDS if f"`{n}`" not in section]
+    assert not missing, f"not in docs/columns.md, 'mpsbench bench': {missing}"
