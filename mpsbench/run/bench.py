@@ -64,7 +64,7 @@ SIZES = {"10k": 10_000, "40k": 40_000, "160k": 160_000}
 first two by default (DEFAULT_SIZES)."""
 DEFAULT_SIZES = (SIZES["10k"], SIZES["40k"])
 DEFAULT_STEPS = 20  # steps per block
-DEFAULT_BUDGET_S = 10.0  # timed seconds per size, all contenders together
+DEFAULT_BUDGET_S = 20.0  # timed seconds per size, all contenders together
 WARMUP_STEPS = 3
 MIN_ROUNDS = 5  # below this a median and quartiles say little
 
