@@ -40,7 +40,8 @@ from mpsbench.physics.particles import Kind
 from mpsbench.run.protocol import Problem
 
 NAME = "pysph-wcsph"
-INSTALL_HINT = "pip install pysph  (PySPH >= 1.0b2; it compiles its kernels with the C compiler)"
+INSTALL_HINT = ("pip install pysph (1.0b2: builds from source in about 8 minutes; needs a C++ "
+                "compiler with OpenMP, at run time too)")
 HDX = 1.3  # h / dx
 ALPHA = 0.1  # artificial viscosity
 CFL = 0.3  # PySPH's default
@@ -140,6 +141,8 @@ class PySPHWCSPH:
         self.time += dt
         for pa in self.arrays:
             pa.set_time(self.time)
+        # PySPH does no checks: a NaN position would crash its neighbour search (a segfault) at
+        # the next step, so stop here (two passes over the fluid: far below the step's cost)
         fluid = self.arrays[0]
         if not (np.all(np.isfinite(fluid.x)) and np.all(np.isfinite(fluid.u))):
             raise FloatingPointError(f"PySPH: non-finite fluid state at t = {self.time:.4g} s")
