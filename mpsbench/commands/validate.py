@@ -70,6 +70,9 @@ def register(sub: Any) -> None:
                    help="output folder (default: reports/<case>-<tier>-<time> for one case, "
                    "reports/<YYYYmmdd-HHMM>-<tier> for 'all')")
     p.add_argument("--force", action="store_true", help="re-run runs whose record already exists")
+    p.add_argument("--junit-xml", default=None, metavar="PATH",
+                   help="also write a JUnit XML report: one test case per run and per check "
+                   "(docs/ci.md)")
     p.set_defaults(func=cmd_validate)
 
 
@@ -158,6 +161,7 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
     ok = write_top_level(out, [section], manifest, [p.name for p in case.params],
                          write_results=False)
+    ci_outputs(args, [section], manifest)
     print_verdicts([section])
     print(f"report: {os.path.join(str(out), 'report.md')}")
     print(f"index:  {out / 'index.html'}")
@@ -216,12 +220,28 @@ def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
     params = [p.name for c in cases for p in c.params]
     ok = write_top_level(out, sections, manifest, params)
+    ci_outputs(args, sections, manifest)
     print_verdicts(sections)
     print(f"{verdict(ok)}: {sum(s.passed for s in sections)}/{len(sections)} cases pass "
           f"in {manifest['wall_s']:.0f} s")
     print(f"summary: {out / 'summary.md'}")
     print(f"index:   {out / 'index.html'}")
     return 0 if ok else 1
+
+
+def ci_outputs(args: argparse.Namespace, sections: list[CaseSection],
+               manifest: dict[str, Any]) -> None:
+    """The outputs for CI: ``--junit-xml`` and the job summary when ``$GITHUB_STEP_SUMMARY`` is
+    set (:mod:`mpsbench.results.junit`, :mod:`mpsbench.results.step_summary`)."""
+    from mpsbench.results.junit import write_junit
+    from mpsbench.results.step_summary import append_step_summary, validation_summary
+
+    if args.junit_xml:
+        try:
+            print(f"junit:  {write_junit(args.junit_xml, sections, manifest)}")
+        except OSError as exc:
+            raise UsageError(f"--junit-xml {args.junit_xml}: cannot write: {exc}") from None
+    append_step_summary(validation_summary(sections, manifest))
 
 
 def heavy_first(tasks: list[Task]) -> list[Task]:
