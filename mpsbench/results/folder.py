@@ -33,11 +33,15 @@ import pandas as pd
 
 from mpsbench.results.case_report import Rendered
 from mpsbench.results.html import render_index
-from mpsbench.results.records import COMMON_COLUMNS, atomic_write_text, load_records
+from mpsbench.results.records import (
+    COMMON_COLUMNS,
+    ENV_COLUMNS,
+    atomic_write_text,
+    load_records,
+)
 from mpsbench.results.sections import CaseSection, exit_ok
 from mpsbench.results.summary import render_summary
 
-ENV_COLUMNS = ("mpsbench_version", "python", "numpy_version", "machine", "git_commit")
 MANIFEST = "manifest.json"
 
 
