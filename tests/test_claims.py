@@ -246,3 +246,23 @@ def test_a_plugin_case_declares_refinement_sets(toys: object, tmp_path: Path) ->
     assert table.count("n_side (l0)") == 4  # two models x two metrics
     assert "0.08333, 0.1, 0.125" in table
     assert "## Table: numerical_uncertainty" in (out / "report.md").read_text()
+
+
+def test_dam_break_gates_hold_the_model_grid_and_name_refinement_runs() -> None:
+    from mpsbench.validations.dam_break import case as dbc
+
+    def ko(variant: str, cfl: float, status: str = "completed") -> dict[str, Any]:
+        params = [p for p in dbc.CASE.expand("quick") if p["geometry"] == "koshizuka-oka"
+                  and p["variant"] == variant and p["l0"] == 0.005 and p["cfl"] == cfl
+                  and p["stabilization_walls"]][0]
+        return {**params, "tier": "quick", "status": status, "front_rms_error": 0.1,
+                "run_id": f"{variant}-{cfl}", "reason": "fluid speed too high"}
+
+    model = [ko("iwc-mps", 0.2), ko("wc-mps", 0.2)]
+    records = [*model, ko("iwc-mps", 0.1), ko("wc-mps", 0.1, "diverged")]
+    assert [r["run_id"] for r in dbc.CASE.model_records(records)] == ["iwc-mps-0.2", "wc-mps-0.2"]
+    complete, front = dbc.CASE.checks(records)
+    assert complete.passed is True and front.passed is True
+    assert "refinement runs not completed" in complete.detail and "wc-mps" in complete.detail
+    model[0]["status"] = "diverged"  # a model-grid run that diverges still fails
+    assert dbc.CASE.checks(records)[0].passed is False

@@ -139,7 +139,7 @@ def test_sets_are_groups_that_differ_only_in_the_refined_parameter() -> None:
     records = [record("a", h, 0.1, 1 + h**2) for h in (0.1, 0.2, 0.4)]  # order 2 in l0
     records += [record("a", 0.1, dt, 1.01 + (dt - 0.1)) for dt in (0.05, 0.025)]  # dt, order 1
     records += [record("b", 0.1, 0.1, 5.0), record("b", 0.2, 0.1, 5.0, check=True)]
-    records.append({**record("a", 0.3, 0.1, 9.0), "status": "diverged"})
+    records.append({**record("a", 0.8, 0.1, 9.0), "status": "diverged"})  # coarser: left out
     unc = NumericalUncertainty(records, [
         Refinement("l0", ("e",), SPACE, order=2.0, ignore=("check",)),
         Refinement("dt", ("e",), TIME, order=1.0),
@@ -187,3 +187,17 @@ def test_model_records_leave_out_the_refinement_runs() -> None:
     # a run made with --set (here dt = 0.05) matches no refinement grid and stays
     other = {"model": "a", "l0": 0.05, "dt": 0.05, "tier": "quick", "status": "completed"}
     assert case.model_records([other]) == [other]
+
+
+def test_a_diverged_finer_run_leaves_its_set_not_converged() -> None:
+    ok = record("a", 0.1, 0.2, 1.0)
+    finer = {**record("a", 0.1, 0.1, 1.2), "status": "diverged"}
+    refs = [Refinement("dt", ("e",), TIME, order=1.0)]
+    u = NumericalUncertainty([ok, finer], refs, PARAMS).of(ok, "e")
+    assert u.measured and not u.converged and u.u is None
+    assert u.text() == "1 (not converged in dt: the run at dt = 0.1 diverged)"
+    # a run that fails only at a coarser step than every completed one is a stability limit
+    coarse = {**record("a", 0.1, 0.4, 9.0), "status": "diverged"}
+    finest = record("a", 0.1, 0.1, 1.0)
+    u = NumericalUncertainty([ok, finest, coarse], refs, PARAMS).of(ok, "e")
+    assert u.converged and u.u == 0.0

@@ -5,10 +5,12 @@ A case declares its refinement sets with :class:`Refinement` (``Case.refinements
 parameter is refined (``l0``, or a time-step parameter such as ``dt``, ``cfl`` or ``c_nu``),
 which metrics, the theoretical order used when only two levels exist, and the parameters that
 do not change those metrics (``dt_check``, ``steady``...).  Its tiers hold the runs: every
-group of completed runs of one solver that differ only in the refined parameter is a set (two
-levels or more).  :class:`NumericalUncertainty` finds the sets and gives, for a run and a
-metric, u_num from each set the run belongs to (space and time components added in
-quadrature), or says "not converged" or "not measured".
+group of runs of one solver that differ only in the refined parameter is a set (two levels or
+more).  A set whose run at a finer level diverged or failed is "incomplete", so not converged:
+at that step the model did not even run through (a run that fails only at a coarser step than
+every completed one marks a stability limit and is left out).  :class:`NumericalUncertainty`
+finds the sets and gives, for a run and a metric, u_num from each set the run belongs to (space
+and time components added in quadrature), or says "not converged" or "not measured".
 """
 
 from __future__ import annotations
@@ -21,7 +23,14 @@ from typing import Any
 import pandas as pd
 
 from mpsbench.cases.analysis import completed_records, matches
-from mpsbench.cases.uncertainty import Convergence, Validation, combine, convergence, validation
+from mpsbench.cases.uncertainty import (
+    INCOMPLETE,
+    Convergence,
+    Validation,
+    combine,
+    convergence,
+    validation,
+)
 
 SPACE, TIME = "l0", "dt"
 
@@ -62,8 +71,9 @@ class RefinementSet:
     refinement: Refinement
     metric: str
     key: tuple[tuple[str, Any], ...]  # the parameters the runs share
-    run_ids: tuple[str, ...]
+    run_ids: tuple[str, ...]  # the completed runs, finest first
     convergence: Convergence
+    note: str = ""  # why an incomplete set is incomplete
 
     @property
     def kind(self) -> str:
@@ -114,7 +124,9 @@ class UNum:
             return f"{fmt(self.value)} (u_num not measured)"
         if not self.converged:
             bad = [k for k, s in self.parts.items() if not s.convergence.converged]
-            return f"{fmt(self.value)} (not converged in {'+'.join(bad)})"
+            notes = [s.note for s in self.parts.values() if s.note]
+            return (f"{fmt(self.value)} (not converged in {'+'.join(bad)}"
+                    + (f": {'; '.join(notes)}" if notes else "") + ")")
         u = self.u
         assert u is not None
         return f"{fmt(self.value)} ± {fmt(u)} ({self.kinds()})"
@@ -135,7 +147,8 @@ class UNum:
                 + " -> " + ", ".join(fmt(v) for v in c.values) + f": {c.kind}"
                 + (f", {'observed' if c.order_observed else 'assumed'} order {c.order:.2g}"
                    if c.order is not None and c.kind != "unchanged" else "")
-                + (f", u = {fmt(u)}" if u is not None else ""))
+                + (f", u = {fmt(u)}" if u is not None else "")
+                + (f" ({s.note})" if s.note else ""))
         return "; ".join(parts) if parts else "no refinement set"
 
     def u_text(self, fmt: Callable[[float], str] = lambda v: f"{v:.2g}") -> str:
@@ -160,11 +173,12 @@ class NumericalUncertainty:
 
     def __init__(self, records: Iterable[dict[str, Any]], refinements: Sequence[Refinement],
                  params: Sequence[str]) -> None:
+        records = list(records)
         self.records = completed_records(records)
         self.by_id = {str(r.get("run_id")): r for r in self.records}
         self.sets: list[RefinementSet] = []
         for ref in refinements:
-            self.sets += _sets(self.records, ref, params)
+            self.sets += _sets(records, ref, params)
         self._index: dict[tuple[str, str], dict[str, RefinementSet]] = {}
         for s in self.sets:
             for rid in s.run_ids:
@@ -206,6 +220,7 @@ class NumericalUncertainty:
                 "order": c.order, "order_observed": c.order_observed if c.order else None,
                 "extrapolated": c.extrapolated, "Fs": c.safety, "u_num": c.u_num,
                 "gci_percent": 100.0 * c.gci if c.gci is not None else None,
+                "note": s.note,
             })
             rows.append(row)
         return pd.DataFrame(rows)
@@ -216,18 +231,34 @@ def _sets(records: list[dict[str, Any]], ref: Refinement,
     skip = {ref.over, *ref.ignore}
     shared = ["solver", *(p for p in params if p not in skip)]
     groups: dict[tuple[tuple[str, Any], ...], dict[float, dict[str, Any]]] = {}
+    broken: dict[tuple[tuple[str, Any], ...], dict[float, dict[str, Any]]] = {}
     for r in records:
         if not matches(r, ref.where):
             continue
         step = r.get(ref.over)
         if not isinstance(step, (int, float)) or isinstance(step, bool) or not step > 0:
             continue
-        key = tuple((p, r.get(p)) for p in shared if p in r)
-        levels = groups.setdefault(_hashable(key), {})
+        key = _hashable(tuple((p, r.get(p)) for p in shared if p in r))
         # runs that differ only in ignored parameters are one point
-        levels.setdefault(ref.step(float(step)), r)
+        target = groups if r.get("status") == "completed" else broken
+        target.setdefault(key, {}).setdefault(ref.step(float(step)), r)
     out = []
     for key, levels in groups.items():
+        coarsest = max(levels)
+        failed = {h: r for h, r in broken.get(key, {}).items()
+                  if h < coarsest and h not in levels}
+        if failed:
+            h, r = min(failed.items())
+            note = f"the run at {ref.over} = {r.get(ref.over)} {r.get('status', 'failed')}"
+            steps = sorted(levels)
+            for metric in ref.metrics:
+                pts = [(s, levels[s]) for s in steps if _finite(levels[s].get(metric))]
+                if pts:
+                    conv = Convergence(tuple(float(r[metric]) for _, r in pts),
+                                       tuple(s for s, _ in pts), INCOMPLETE)
+                    out.append(RefinementSet(ref, metric, key,
+                                             tuple(str(r["run_id"]) for _, r in pts), conv, note))
+            continue
         if len(levels) < 2:
             continue
         steps = sorted(levels)

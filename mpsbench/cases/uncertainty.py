@@ -43,6 +43,7 @@ DIVERGING = "diverging"
 TWO_LEVELS = "two levels"
 UNCHANGED = "unchanged"
 NO_ORDER = "two levels, no theoretical order"
+INCOMPLETE = "incomplete"  # a run at a finer level diverged or failed (see refinement.py)
 
 # convergence kinds that give a u_num
 CONVERGED = (MONOTONE, TWO_LEVELS, UNCHANGED)

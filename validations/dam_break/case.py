@@ -433,7 +433,7 @@ class DamBreakCase(Case):
     def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
         from .analysis import gates
 
-        return gates(records)
+        return gates(records, self.model_records(records))
 
     def claims(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
         from .analysis import claims
