@@ -92,8 +92,9 @@ def cmd_report(args: argparse.Namespace) -> int:
         print(f"{verdict(sec.passed)} {sec.name}" + (f": {sec.error}" if sec.error else ""))
     claims = [c for s in ordered for so in s.solvers for c in so.rendered.claims]
     counts = f"; claims: {claim_counts(claims)}" if claims else ""
+    strict = " (--strict-claims: a refuted claim fails)" if args.strict_claims else ""
     print(f"{verdict(ok)}: {sum(s.passed for s in ordered)}/{len(ordered)} cases pass their "
-          f"gates{counts}")
+          f"gates{counts}{strict}")
     for c in (c for s in ordered for c in s.refuted):
         print(f"  refuted {c.claim}: {c.name}")
     print(f"summary: {out / 'summary.md'}")
