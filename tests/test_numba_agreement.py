@@ -15,21 +15,24 @@ import dataclasses
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from mpsbench.physics import operators as ops
 from mpsbench.physics.config import Models
+from mpsbench.physics.laplacians import LAPLACIANS, get_laplacian
 from mpsbench.physics.neighbours import build_pairs
 from mpsbench.physics.weights import get_weight
-from mpsbench.run.protocol import Problem, make_solver
+from mpsbench.run.protocol import Problem
 from mpsbench.run.runner import run
+from mpsbench.run.specs import make_solver
 from mpsbench.testing import parametrize_solver_checks, problems
 
 numba = pytest.importorskip("numba")
 backend = pytest.importorskip("mpsbench.solvers.numba_backend")
-kernels, cells = backend.kernels, backend.cells
+kernels, cells, formulas = backend.kernels, backend.cells, backend.formulas
 NumbaSolver = backend.NumbaSolver
 
 
@@ -66,14 +69,16 @@ def test_laplacian_on_lattice_with_neighbours_on_the_support_edge(lname, rr):
     assert np.any(pl.r > re), "the lattice must have pairs a rounding error beyond r_e"
     phi = np.sin(2 * np.pi * pos[:, 0]) * np.sin(2 * np.pi * pos[:, 1])
     n0, lam = ops.lattice_constants(wf, rr, l0)
-    code = kernels.laplacian_code(lname)
+    model = get_laplacian(lname)
     csr = cells.build_csr(pos, cells.CellNeighbourList.padded(re, 0.0), box)
-    got = kernels.laplacian(
-        csr.offsets, csr.nbr, pos, cells.box_period(box), phi, code, 1, re,
-        kernels.laplacian_prefactor(code, n0, lam), n0, False, np.empty(len(pos)),
+    got = np.empty((len(pos), 1))
+    kernels.laplacian_field(formulas.weight(wf), formulas.laplacian(model))(
+        csr.offsets, csr.nbr, pos, cells.box_period(box), phi.reshape(-1, 1), re,
+        model.prefactor(n0, lam), kernels.NO_MOMENT, ops.DIM / n0, False, got, np.empty(0),
+        np.zeros(0, dtype=np.bool_),
     )
-    want = ops.get_laplacian(lname).apply(pl, phi, wf, re, n0, lam)
-    np.testing.assert_allclose(got, want, rtol=0, atol=1e-10 * np.abs(want).max())
+    want = model.apply(pl, phi, wf, re, n0, lam)
+    np.testing.assert_allclose(got[:, 0], want, rtol=0, atol=1e-10 * np.abs(want).max())
 
 
 # --------------------------------------------------------------------------- diffusion
@@ -107,6 +112,58 @@ def test_diffusion_fields_agree(lname, wname, rr, amp, gcorr):
         nb.diagnostics()["number_density"], ref.diagnostics()["number_density"], rtol=1e-12
     )
     assert nb.diagnostics()["n0"] == pytest.approx(ref.diagnostics()["n0"], rel=1e-12)
+
+
+PLUGIN_SRC = Path(__file__).resolve().parents[1] / "examples" / "plugin" / "src"
+
+
+@pytest.fixture
+def ko_local(monkeypatch: pytest.MonkeyPatch):
+    """The example plugin's ko-local Laplacian, registered as the plugin's entry point would."""
+    monkeypatch.syspath_prepend(str(PLUGIN_SRC))
+    from mpsbench_example.laplacian import LocalKoshizukaOka
+
+    saved = LAPLACIANS._entries.get("ko-local")
+    LAPLACIANS.register("ko-local", LocalKoshizukaOka, replace=True, origin="user")
+    yield LocalKoshizukaOka
+    LAPLACIANS.unregister("ko-local")
+    if saved is not None:
+        LAPLACIANS._entries["ko-local"] = saved
+
+
+def test_plugin_laplacian_agrees_on_the_diffusion_smoke_runs(ko_local):
+    """The example plugin's ko-local (a Laplacian normalised per particle) on the numba
+    backend: every run of the diffusion case's smoke tier with laplacian=ko-local gives the
+    reference's field to 1e-10 relative (both thread paths: one thread keeps each pair once)."""
+    from mpsbench.validations.diffusion.case import CASE, END_TIME, FIELD
+
+    runs = CASE.expand("smoke", {"laplacian": ["ko-local"]})
+    assert runs and all(r["laplacian"] == "ko-local" for r in runs)
+    for params in runs:
+        ref = run("reference", CASE.build(params), end_time=END_TIME)
+        assert ref.ok and ref.final is not None, ref.reason
+        want = ref.final.fields[FIELD]
+        assert np.abs(want - CASE.build(params).particles.fields[FIELD]).max() > 0.1
+        for spec in ("numba:threads=1", "numba:threads=2"):
+            got = run(spec, CASE.build(params), end_time=END_TIME)
+            assert got.ok and got.final is not None, got.reason
+            assert got.n_steps == ref.n_steps
+            assert rel(got.final.fields[FIELD], want) <= 1e-10, (params, spec)
+
+
+def test_plugin_laplacian_agrees_in_a_flow(ko_local):
+    """ko-local as the viscous term of a WC-MPS column (moments over a flow's pair lists,
+    static dummy pairs left out in both backends), half lists and rows."""
+    def build() -> Problem:
+        return problems.column_in_tank_problem(
+            models=Models(laplacian="ko-local", re_ratio_laplacian=3.1), stabilization=True
+        )
+
+    ref = advance("reference", build(), 60)
+    for solver in (NumbaSolver(pairwise=True), NumbaSolver(pairwise=False)):
+        got = advance(solver, build(), 60)
+        assert np.abs(got.state().pos - ref.state().pos).max() <= 1e-8 * build().l0
+        assert rel(got.state().vel, ref.state().vel) <= 1e-8
 
 
 # --------------------------------------------------------------------------- Couette
@@ -246,7 +303,7 @@ def test_threads_are_chosen_by_size_and_restored():
     s.step(s.stable_dt())
     assert numba.get_num_threads() == before
     with pytest.raises(ValueError, match="threads"):
-        NumbaSolver(threads=0)
+        NumbaSolver(threads=-1)
 
 
 def _run_in_worker(n_side: int) -> tuple[int, float]:
@@ -339,6 +396,6 @@ def test_mirror_velocities_match_the_reference(wname):
     problem.box.wrap(moved.pos)
     re = 3.1 * problem.l0
     want = mirror_velocity(moved, get_weight(wname), re, problem.box)
-    got = mirror.mirror_velocity(moved, kernels.weight_code(wname), re, problem.box)
+    got = mirror.mirror_velocity(moved, formulas.weight(get_weight(wname)), re, problem.box)
     assert not np.array_equal(want, moved.vel)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12 * np.abs(want).max())

@@ -150,7 +150,7 @@ def test_tier_grid_when_no_grid(tmp_path: Path) -> None:
 
 
 def test_plugin_model_name_is_accepted(tmp_path: Path) -> None:
-    from mpsbench.physics.operators import LAPLACIANS, KoshizukaOka
+    from mpsbench.physics.laplacians import LAPLACIANS, KoshizukaOka
 
     class Mine(KoshizukaOka):
         name = "mine"

@@ -13,7 +13,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+from mpsbench.physics.gradients import GRADIENTS
+from mpsbench.physics.laplacians import LAPLACIANS
 from mpsbench.physics.weights import WEIGHTS
 
 # The four Laplacians of docs/method.md section 3, in the order the tables list them.

@@ -27,9 +27,9 @@ def register(sub: Any) -> None:
         "cost of the first call, and the speed-up over the reference backend measured in the "
         "same run.",
     )
-    p.add_argument("--solver", action="append", default=None, metavar="NAME",
-                   help="backend to time (repeatable; default: every available backend); the "
-                   "reference backend is always timed too")
+    p.add_argument("--solver", action="append", default=None, metavar="SPEC",
+                   help="backend to time, NAME or NAME:key=value,... (repeatable; default: every "
+                   "available backend); the reference backend is always timed too")
     p.add_argument("--n", action="append", type=int, default=None, metavar="N",
                    help="approximate particle count (repeatable; default: "
                    + ", ".join(str(n) for n in DEFAULT_SIZES) + ")")
@@ -56,6 +56,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from mpsbench.errors import UsageError
     from mpsbench.run.bench import MIN_N, format_table, run_bench
     from mpsbench.run.protocol import SOLVERS
+    from mpsbench.run.specs import solver_spec
 
     sizes = args.n or list(DEFAULT_SIZES)
     for n in sizes:
@@ -64,12 +65,13 @@ def cmd_bench(args: argparse.Namespace) -> int:
     if args.steps < 1:
         raise UsageError(f"--steps {args.steps} is not allowed: an integer >= 1")
     solvers = args.solver or _default_solvers()
-    for name in solvers:
+    for spec in solvers:
+        name = spec.partition(":")[0]
         if name not in SOLVERS:
             raise UsageError(
                 f"unknown solver {name!r}; known solvers: {', '.join(SOLVERS.names())}"
             )
-        SOLVERS.get(name)  # unavailable: PluginLoadError, exit 2 with the reason
+        solver_spec(spec)  # unavailable: PluginLoadError; bad option: ConfigError (exit 2)
 
     def progress(text: str) -> None:
         if not args.json:

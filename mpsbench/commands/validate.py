@@ -26,10 +26,9 @@ from mpsbench.cases import CASES, TIERS, Case, case_order, get_case
 from mpsbench.errors import UsageError
 from mpsbench.results.case_report import check_lines
 from mpsbench.results.folder import MANIFEST, write_top_level
-from mpsbench.results.records import Task, atomic_write_text, environment
+from mpsbench.results.records import Task, atomic_write_text, canonical_solver, environment
 from mpsbench.results.sections import CaseSection, render_case, safe_render_case, verdict
 from mpsbench.results.sweep import plan, print_progress, run_tasks
-from mpsbench.run.protocol import SOLVERS
 
 ORDER = 30
 MAX_AUTO_JOBS = 4
@@ -45,8 +44,9 @@ def register(sub: Any) -> None:
     )
     p.add_argument("case", help="case name (see 'mpsbench validate --list') or 'all'", nargs="?")
     p.add_argument("--list", action="store_true", help="list the registered cases and exit")
-    p.add_argument("--solver", action="append", default=None, metavar="NAME",
-                   help="solver backend (repeatable; default: reference)")
+    p.add_argument("--solver", action="append", default=None, metavar="SPEC",
+                   help="solver backend, NAME or NAME:key=value,... with its options (see "
+                   "'mpsbench solvers'), e.g. numba:threads=1 (repeatable; default: reference)")
     p.add_argument("--tier", default="quick", choices=TIERS,
                    help="smoke (seconds, for CI), quick (default, minutes) or paper (full grid)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE[,VALUE...]",
@@ -100,9 +100,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
         raise UsageError("give a case name or 'all' (see --list)")
     if args.jobs is not None and args.jobs < 1:
         raise UsageError(f"--jobs = {args.jobs} is not allowed: an integer >= 1")
-    solvers = list(dict.fromkeys(args.solver or ["reference"]))
-    for s in solvers:
-        SOLVERS.get(s)  # unknown or broken solver: usage error before any run
+    # unknown or broken solver, unknown option or bad value: usage error before any run
+    solvers = list(dict.fromkeys(canonical_solver(s) for s in args.solver or ["reference"]))
     if args.case == "all":
         if args.set:
             raise UsageError("--set applies to one case; run 'mpsbench validate CASE --set ...'")

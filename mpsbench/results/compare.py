@@ -1,8 +1,9 @@
 """Hold the metrics of a run against a baseline run (``mpsbench compare``).
 
-Records match by (case, solver, every parameter the case declares); a parameter a record lacks
-(a baseline older than the parameter) takes its default.  For a case that cannot be loaded the
-run id, built from the same three things, is the key.
+Records match by (case, solver, solver options, every parameter the case declares); a parameter
+a record lacks (a baseline older than the parameter) takes its default, a record without solver
+options has the backend's defaults.  For a case that cannot be loaded the run id, built from the
+same things, is the key.
 
 Per metric, a :class:`Rule` says which way is better and how far it may move:
 
@@ -34,7 +35,8 @@ from mpsbench.errors import ConfigError
 from mpsbench.results.records import load_records
 
 REQUIRED = ("case", "solver", "status")
-IDENTITY = ("case", "solver", "solver_version", "tier", "run_id", "status", "reason")
+IDENTITY = ("case", "solver", "solver_options", "solver_version", "tier", "run_id", "status",
+            "reason")
 ENVIRONMENT = ("mpsbench_version", "python", "numpy_version", "machine", "git_commit")
 TIMING = {"wall_time_s": "lower", "particle_steps_per_s": "higher", "elapsed_s": "lower"}
 COUNTERS = ("n_particles", "n_steps", "n_solver_runs")
@@ -195,7 +197,8 @@ class _Cases:
 
 
 def record_key(rec: dict[str, Any], case: Case | None) -> tuple[Any, ...]:
-    head = (str(rec["case"]), str(rec["solver"]))
+    # a record older than solver options has none: the backend's defaults
+    head = (str(rec["case"]), str(rec["solver"]), str(rec.get("solver_options") or ""))
     if case is None:
         if _missing(rec.get("run_id")):
             raise CompareError(f"record of unknown case {rec['case']!r} has no run_id to match by")

@@ -33,7 +33,12 @@ import pandas as pd
 
 from mpsbench.results.case_report import Rendered
 from mpsbench.results.html import render_index
-from mpsbench.results.records import COMMON_COLUMNS, atomic_write_text, load_records
+from mpsbench.results.records import (
+    COMMON_COLUMNS,
+    atomic_write_text,
+    load_records,
+    solver_folder,
+)
 from mpsbench.results.sections import CaseSection
 from mpsbench.results.summary import render_summary
 
@@ -63,7 +68,7 @@ def copy_figures(out: Path, sections: list[CaseSection]) -> dict[Path, Path]:
         several = sec.combined is not None
         if sec.combined is not None:
             parts.append(("", sec.combined))
-        parts += [(s.solver if several else "", s.rendered) for s in sec.solvers]
+        parts += [(solver_folder(s.solver) if several else "", s.rendered) for s in sec.solvers]
         for sub, rendered in parts:
             dest = out / "figures" / sec.name / sub if sub else out / "figures" / sec.name
             for fig in rendered.figures:

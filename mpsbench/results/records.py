@@ -32,10 +32,11 @@ import numpy as np
 import mpsbench
 from mpsbench.cases import get_case
 from mpsbench.run.protocol import Status
+from mpsbench.run.specs import solver_spec
 
 COMMON_COLUMNS = (
-    "case", "solver", "solver_version", "tier", "run_id", "status", "reason", "wall_time_s",
-    "particle_steps_per_s", "n_particles", "n_steps",
+    "case", "solver", "solver_options", "solver_version", "tier", "run_id", "status", "reason",
+    "wall_time_s", "particle_steps_per_s", "n_particles", "n_steps",
 )
 
 
@@ -48,9 +49,11 @@ def run_id(
 ) -> str:
     """A readable, filesystem-safe name built from the parameters (plus a short hash).
 
-    With the case's ``defaults`` (in the case's parameter order) the readable part lists the
-    parameters that differ from them or are named in ``always`` (those a study sweeps), in that
-    order, so names stay short and say what the run varies; the hash covers every parameter.
+    ``solver`` is the canonical solver spec (``numba`` or ``numba:threads=1``): options off
+    their defaults are part of the name and the hash.  With the case's ``defaults`` (in the
+    case's parameter order) the readable part lists the parameters that differ from them or are
+    named in ``always`` (those a study sweeps), in that order, so names stay short and say what
+    the run varies; the hash covers every parameter.
     """
     if defaults is not None:
         keep = set(always)
@@ -87,10 +90,38 @@ def _short(v: Any) -> str:
 @dataclass
 class Task:
     case: str
-    solver: str
+    solver: str  # the canonical solver spec: NAME or NAME:key=value,... (non-default options)
     tier: str
     params: dict[str, Any]
     run_id: str
+
+
+def solver_columns(spec: str) -> dict[str, str]:
+    """The record columns of a solver spec: ``solver`` (the name) and ``solver_options``
+    (``key=value,...`` of the non-default options, '' for none), kept apart so the name stays
+    a plain name wherever a record's solver is used (folders, tables)."""
+    name, _, options = spec.partition(":")
+    return {"solver": name, "solver_options": options}
+
+
+def solver_label(record: dict[str, Any]) -> str:
+    """The solver spec of a record: ``solver``, with ``:solver_options`` when it has options."""
+    name = str(record.get("solver", "?"))
+    options = record.get("solver_options") or ""
+    return f"{name}:{options}" if options else name
+
+
+def solver_folder(label: str) -> str:
+    """A folder name for a solver spec: the name, then the options with every character that is
+    not a letter, digit or ``=.+-`` replaced by ``_`` (``numba:threads=1``: ``numba_threads=1``).
+    """
+    name, _, options = label.partition(":")
+    return f"{name}_{re.sub(r'[^A-Za-z0-9=.+-]+', '_', options)}" if options else name
+
+
+def canonical_solver(text: str) -> str:
+    """The canonical spec of ``text`` (validated against the backend's options)."""
+    return solver_spec(text).text
 
 
 def environment() -> dict[str, Any]:
@@ -124,8 +155,8 @@ def execute_task(task: Task, outdir: str, env: dict[str, Any]) -> dict[str, Any]
     runs = Path(outdir) / "runs"
     runs.mkdir(parents=True, exist_ok=True)
     record: dict[str, Any] = {
-        "case": task.case, "solver": task.solver, "solver_version": "", "tier": task.tier,
-        "run_id": task.run_id, **task.params,
+        "case": task.case, **solver_columns(task.solver), "solver_version": "",
+        "tier": task.tier, "run_id": task.run_id, **task.params,
     }
     t0 = time.perf_counter()
     arrays: dict[str, np.ndarray] = {}
@@ -258,8 +289,8 @@ def load_arrays(outdir: str | Path, rid: str) -> dict[str, np.ndarray]:
 
 def _crashed(task: Task, exc: BaseException, env: dict[str, Any]) -> dict[str, Any]:
     return {
-        "case": task.case, "solver": task.solver, "solver_version": "", "tier": task.tier,
-        "run_id": task.run_id, **task.params, "status": Status.FAILED.value,
+        "case": task.case, **solver_columns(task.solver), "solver_version": "",
+        "tier": task.tier, "run_id": task.run_id, **task.params, "status": Status.FAILED.value,
         "reason": f"worker process died: {type(exc).__name__}: {exc}", "wall_time_s": 0.0,
         "particle_steps_per_s": 0.0, "n_particles": 0, "n_steps": 0, **env,
     }

@@ -17,6 +17,7 @@ import pandas as pd
 
 from mpsbench.cases import Case
 from mpsbench.results.case_report import Rendered, render_case_outputs
+from mpsbench.results.records import solver_folder, solver_label
 
 
 @dataclass
@@ -47,7 +48,15 @@ class CaseSection:
 
 
 def solver_order(records: list[dict[str, Any]]) -> list[str]:
-    return list(dict.fromkeys(str(r.get("solver", "?")) for r in records))
+    """The solver specs of the records in order of appearance (name, or name:options)."""
+    return list(dict.fromkeys(solver_label(r) for r in records))
+
+
+def by_spec(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The records as the case's tables and figures see them: ``solver`` holds the whole spec,
+    so runs of one backend with different options are told apart (the records themselves keep
+    the name and the options in separate columns)."""
+    return [{**r, "solver": solver_label(r)} if r.get("solver_options") else r for r in records]
 
 
 def _version(records: list[dict[str, Any]]) -> str:
@@ -61,15 +70,17 @@ def render_case(case: Case, records: list[dict[str, Any]], folder: Path) -> Case
         section.error = "no runs were planned for this tier"
         return section
     solvers = solver_order(records)
+    view = by_spec(records)
     if len(solvers) == 1:
-        rendered = render_case_outputs(case, records, folder)
+        rendered = render_case_outputs(case, view, folder)
         section.solvers = [SolverSection(solvers[0], _version(records), rendered)]
         return section
-    section.combined = render_case_outputs(case, records, folder)
-    section.by_solver = solver_table(case, records)
+    section.combined = render_case_outputs(case, view, folder)
+    section.by_solver = solver_table(case, view)
     for solver in solvers:
-        recs = [r for r in records if r.get("solver") == solver]
-        out = render_case_outputs(case, recs, folder / "by-solver" / solver, arrays_dir=folder)
+        recs = [r for r in view if r.get("solver") == solver]
+        out = render_case_outputs(case, recs, folder / "by-solver" / solver_folder(solver),
+                                  arrays_dir=folder)
         section.solvers.append(SolverSection(solver, _version(recs), out))
     return section
 
@@ -99,9 +110,10 @@ def case_from_disk(name: str, records: list[dict[str, Any]], folder: Path, why: 
                                          Rendered.from_disk(folder, records))]
     else:
         section.combined = Rendered.from_disk(folder, records)
+        view = by_spec(records)
         for s in solvers:
-            recs = [r for r in records if r.get("solver") == s]
-            rendered = Rendered.from_disk(folder / "by-solver" / s, recs)
+            recs = [r for r in view if r.get("solver") == s]
+            rendered = Rendered.from_disk(folder / "by-solver" / solver_folder(s), recs)
             section.solvers.append(SolverSection(s, _version(recs), rendered))
     if not records:
         section.error = "no records"

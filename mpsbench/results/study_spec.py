@@ -54,8 +54,9 @@ TOP_KEYS: dict[str, str] = {
     "description": "free text",
     "case": "a case name (see 'mpsbench validate --list')",
     "cases": "a list of case names",
-    "solver": "a solver name (see 'mpsbench solvers')",
-    "solvers": "a list of solver names (default [\"reference\"])",
+    "solver": "a solver spec: a name, or NAME:key=value,... with its options (see "
+              "'mpsbench solvers')",
+    "solvers": "a list of solver specs (default [\"reference\"])",
     "tier": "one of smoke, quick, paper (default quick)",
     "out": "the output folder, relative to the current directory (default reports/studies/NAME)",
     "jobs": "an integer >= 1 (default 1)",
@@ -227,12 +228,9 @@ class _Validator:
             self.fail("scheduler", "a scheduler address only goes with executor = \"dask\"")
         out = self._string(data, "out", "") or None
 
-        from mpsbench.run.protocol import SOLVERS
-
         cases: list[Case] = self._load_named(
             case_names, "cases" if "cases" in data else "case", CASES, "case")
-        self._load_named(solver_names, "solvers" if "solvers" in data else "solver", SOLVERS,
-                         "solver")
+        solver_names = self._solvers(solver_names, "solvers" if "solvers" in data else "solver")
         for case in cases:
             if tier in TIERS and tier not in case.tiers:
                 self.fail("tier", f"{_fmt(tier)} is not a tier of case {case.name!r}: one of "
@@ -308,6 +306,24 @@ class _Validator:
             except PluginLoadError as exc:
                 self.fail(key, str(exc))
         return out
+
+    def _solvers(self, specs: list[str], given: str) -> list[str]:
+        """Check each solver spec (``numba``, ``numba:threads=1``): the name against the
+        registry, the options against the backend's; return the canonical specs."""
+        from mpsbench.run.protocol import SOLVERS
+        from mpsbench.run.specs import solver_spec
+
+        out = []
+        for k, spec in enumerate(specs):
+            key = f"{given}[{k}]" if given == "solvers" else given
+            name = spec.partition(":")[0].strip()
+            if not self._load_named([name], key, SOLVERS, "solver"):
+                continue
+            try:
+                out.append(solver_spec(spec).text)
+            except ConfigError as exc:
+                self.fail(key, str(exc))
+        return list(dict.fromkeys(out))
 
     # ---- parameters
     def _param_for(self, key: str, name: str, cases: list[Case]) -> list[Param] | None:
@@ -464,7 +480,8 @@ def _model_registry(param_name: str) -> Any:
     category = MODEL_PARAMS.get(param_name)
     if category is None:
         return None
-    from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+    from mpsbench.physics.gradients import GRADIENTS
+    from mpsbench.physics.laplacians import LAPLACIANS
     from mpsbench.physics.weights import WEIGHTS
 
     return {"laplacians": LAPLACIANS, "weights": WEIGHTS, "gradients": GRADIENTS}[category]

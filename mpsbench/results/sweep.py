@@ -16,15 +16,16 @@ from typing import Any
 
 from mpsbench.cases import Case
 from mpsbench.results.executors import Executor, LocalExecutor
-from mpsbench.results.records import Task, environment, load_record, run_ids
+from mpsbench.results.records import Task, canonical_solver, environment, load_record, run_ids
 
 
 def plan(
     case: Case, solvers: Sequence[str], tier: str, overrides: dict[str, Sequence[Any]] | None = None
 ) -> list[Task]:
+    """The tasks of a case's tier for each solver spec (``numba``, ``numba:threads=1``)."""
     tasks = []
     sets = case.expand(tier, overrides)
-    for solver in solvers:
+    for solver in dict.fromkeys(canonical_solver(s) for s in solvers):
         ids = run_ids(case.name, solver, sets, case.defaults())
         tasks += [Task(case.name, solver, tier, p, rid) for p, rid in zip(sets, ids, strict=True)]
     return tasks

@@ -30,7 +30,8 @@ from typing import Any
 import numpy as np
 
 from mpsbench.physics.particles import Kind
-from mpsbench.run.protocol import Problem, Solver, get_solver_class
+from mpsbench.run.protocol import Problem, Solver
+from mpsbench.run.specs import SolverSpec, make_solver, solver_spec
 
 G = 9.81  # m/s^2
 COLUMN = (0.146, 0.292)  # m: the dam-break column (width, height)
@@ -120,9 +121,11 @@ def _load() -> float:
         return float("nan")
 
 
-def _cold_start(cls: type, problem_fn: Callable[[], Problem]) -> tuple[float, float, Solver]:
+def _cold_start(
+    make: Callable[[], Solver], problem_fn: Callable[[], Problem]
+) -> tuple[float, float, Solver]:
     """(setup s, first step s, the solver) for a fresh instance."""
-    s: Solver = cls()
+    s: Solver = make()
     problem = problem_fn()
     t0 = time.perf_counter()
     s.setup(problem)
@@ -133,7 +136,7 @@ def _cold_start(cls: type, problem_fn: Callable[[], Problem]) -> tuple[float, fl
 
 
 def measure(
-    solver: str | type,
+    solver: str | type | SolverSpec,
     n: int | None = None,
     *,
     l0: float | None = None,
@@ -143,7 +146,20 @@ def measure(
     """Time one backend on the benchmark workload (see the module docstring)."""
     if not (isinstance(steps, int) and steps >= 1):
         raise ValueError(f"steps = {steps!r} is not allowed: an integer >= 1")
-    cls = get_solver_class(solver)
+    if isinstance(solver, type):
+        cls: type = solver
+
+        def make() -> Solver:
+            return make_solver(cls)
+
+        label = str(getattr(cls, "name", cls.__name__))
+    else:
+        spec = solver_spec(solver)
+
+        def make() -> Solver:
+            return make_solver(spec)
+
+        label = spec.text
     if l0 is None:
         l0 = spacing_for(n) if n is not None else None
     if l0 is None:
@@ -155,8 +171,8 @@ def measure(
 
     load = _load()
     with np.errstate(all="raise", under="ignore"):
-        cold_setup, cold_step, _ = _cold_start(cls, problem_fn)
-        warm_setup, warm_step, s = _cold_start(cls, problem_fn)
+        cold_setup, cold_step, _ = _cold_start(make, problem_fn)
+        warm_setup, warm_step, s = _cold_start(make, problem_fn)
         jit = max(0.0, (cold_setup + cold_step) - (warm_setup + warm_step))
         for _ in range(warmup):
             s.step(s.stable_dt())
@@ -179,7 +195,7 @@ def measure(
         rebuild_ms, method = _rebuild_time(s, walls, rebuilt)
     fluid = int(np.count_nonzero(s.state().kind == Kind.FLUID))
     return BenchRecord(
-        solver=str(getattr(s, "name", cls.__name__)),
+        solver=label,
         n=n_particles,
         n_fluid=fluid,
         threads=_threads_of(s),
@@ -230,9 +246,8 @@ def run_bench(
     ``speedup_vs_reference`` = particle-steps/s of the backend over the reference's at the same
     size in this run.
     """
-    names = list(dict.fromkeys([reference, *solvers]))
-    for name in names:
-        get_solver_class(name)  # fail early on an unknown or unavailable backend
+    # fail early on an unknown or unavailable backend or a bad option
+    names = list(dict.fromkeys(solver_spec(s).text for s in [reference, *solvers]))
     records = []
     for n in sizes:
         l0 = spacing_for(n)

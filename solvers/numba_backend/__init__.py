@@ -38,7 +38,7 @@ except ImportError as exc:  # pragma: no cover - exercised only without numba
 # microseconds per kernel on an idle machine.  A value the user set wins.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-from . import cells, kernels, mirror, pairs, steps
+from . import cells, formulas, kernels, mirror, pairs, steps
 from .cells import CellNeighbourList, CSRNeighbours, build_csr, build_pairs_cells
 from .solver import NumbaSolver
 
@@ -49,6 +49,7 @@ __all__ = [
     "build_csr",
     "build_pairs_cells",
     "cells",
+    "formulas",
     "kernels",
     "mirror",
     "pairs",

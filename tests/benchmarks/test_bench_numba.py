@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from mpsbench.run.bench import spacing_for, workload
-from mpsbench.run.protocol import make_solver
+from mpsbench.run.specs import make_solver
 
 STEPS = 20
 SIZES = {"10k": 10_000, "40k": 40_000, "160k": 160_000}

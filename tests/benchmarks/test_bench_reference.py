@@ -29,7 +29,7 @@ import numpy as np
 import pytest
 
 from mpsbench.physics.particles import Kind
-from mpsbench.run.protocol import make_solver
+from mpsbench.run.specs import make_solver
 from mpsbench.testing import problems
 
 STEPS = 20  # consecutive steps per round

@@ -50,7 +50,8 @@ import numpy as np
 
 from mpsbench.cases import Case, CaseCheck, CaseRun, Grid, Param
 from mpsbench.physics.config import FlowPhysics, Models, TimeStepping
-from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+from mpsbench.physics.gradients import GRADIENTS
+from mpsbench.physics.laplacians import LAPLACIANS
 from mpsbench.physics.particles import Box, Kind, Particles, block, tank
 from mpsbench.physics.weights import WEIGHTS
 from mpsbench.run.probes import PointPressure, Probe, Snapshot

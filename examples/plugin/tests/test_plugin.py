@@ -17,8 +17,9 @@ from __future__ import annotations
 import pytest
 from mpsbench_example.solver import ExampleSolver
 
+from mpsbench.physics.laplacians import KoshizukaOka, get_laplacian
 from mpsbench.physics.neighbours import build_pairs
-from mpsbench.physics.operators import KoshizukaOka, get_laplacian, lattice_constants, lattice_pairs
+from mpsbench.physics.operators import lattice_constants, lattice_pairs
 from mpsbench.physics.weights import get_weight
 from mpsbench.run.protocol import SOLVERS
 from mpsbench.testing import parametrize_solver_checks
