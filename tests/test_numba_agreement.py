@@ -33,6 +33,7 @@ from mpsbench.testing import parametrize_solver_checks, problems
 numba = pytest.importorskip("numba")
 backend = pytest.importorskip("mpsbench.solvers.numba_backend")
 kernels, cells, formulas = backend.kernels, backend.cells, backend.formulas
+geometry, neighbour_list = backend.geometry, backend.neighbour_list
 NumbaSolver = backend.NumbaSolver
 
 
@@ -70,10 +71,10 @@ def test_laplacian_on_lattice_with_neighbours_on_the_support_edge(lname, rr):
     phi = np.sin(2 * np.pi * pos[:, 0]) * np.sin(2 * np.pi * pos[:, 1])
     n0, lam = ops.lattice_constants(wf, rr, l0)
     model = get_laplacian(lname)
-    csr = cells.build_csr(pos, cells.CellNeighbourList.padded(re, 0.0), box)
+    csr = cells.build_csr(pos, neighbour_list.CellNeighbourList.padded(re, 0.0), box)
     got = np.empty((len(pos), 1))
     kernels.laplacian_field(formulas.weight(wf), formulas.laplacian(model))(
-        csr.offsets, csr.nbr, pos, cells.box_period(box), phi.reshape(-1, 1), re,
+        csr.offsets, csr.nbr, pos, geometry.box_period(box), phi.reshape(-1, 1), re,
         model.prefactor(n0, lam), kernels.NO_MOMENT, ops.DIM / n0, False, got, np.empty(0),
         np.zeros(0, dtype=np.bool_),
     )

@@ -29,6 +29,7 @@ numba = pytest.importorskip("numba")
 _backend = pytest.importorskip("mpsbench.solvers.numba_backend")
 cells, kernels, formulas, pairs = (_backend.cells, _backend.kernels, _backend.formulas,
                                    _backend.pairs)
+geometry, neighbour_list = _backend.geometry, _backend.neighbour_list
 ALL_ROWS = np.zeros(0, dtype=np.bool_)
 NO_ROWS = np.empty(0)
 
@@ -78,7 +79,7 @@ def case(request):
 
 
 def args(csr, pos, box):
-    return csr.offsets, csr.nbr, pos, cells.box_period(box)
+    return csr.offsets, csr.nbr, pos, geometry.box_period(box)
 
 
 # --------------------------------------------------------------------------- pair lists
@@ -90,7 +91,7 @@ def args(csr, pos, box):
 def test_pair_list_equals_build_pairs(name, cutoff, reach):
     pos, box, _ = cloud(BOXES[name], seed=3)
     ref = build_pairs(pos, cutoff, box)
-    got = cells.csr_to_pairs(cells.build_csr(pos, cutoff, box, reach=reach), pos)
+    got = neighbour_list.csr_to_pairs(cells.build_csr(pos, cutoff, box, reach=reach), pos)
     assert len(got) == len(ref) > 0
     for attr in ("i", "j", "dx", "r"):
         np.testing.assert_array_equal(getattr(got, attr), getattr(ref, attr), err_msg=attr)
@@ -102,7 +103,7 @@ def test_pair_list_with_unwrapped_positions():
     rng = np.random.default_rng(5)
     shifted += rng.integers(-2, 3, size=pos.shape) * SIDE * L0  # images up to two periods away
     ref = build_pairs(shifted, 0.31, box)
-    got = cells.build_pairs_cells(shifted, 0.31, box)
+    got = neighbour_list.build_pairs_cells(shifted, 0.31, box)
     for attr in ("i", "j", "dx", "r"):
         np.testing.assert_array_equal(getattr(got, attr), getattr(ref, attr), err_msg=attr)
 
@@ -121,14 +122,15 @@ def test_csr_rows_hold_both_directions(case):
 
 
 def test_small_and_degenerate_inputs():
-    assert len(cells.build_pairs_cells(np.zeros((0, 2)), 1.0)) == 0
-    assert len(cells.build_pairs_cells(np.zeros((1, 2)), 1.0)) == 0
+    assert len(neighbour_list.build_pairs_cells(np.zeros((0, 2)), 1.0)) == 0
+    assert len(neighbour_list.build_pairs_cells(np.zeros((1, 2)), 1.0)) == 0
     csr = cells.build_csr(np.zeros((0, 2)), 1.0)
     assert csr.offsets.tolist() == [0] and len(csr) == 0
     # one far-away particle must not blow up the grid or lose pairs
     pos, box, _ = cloud((False, False), seed=6)
     pos = np.vstack([pos, [[1e7, -3e6]]])
-    np.testing.assert_array_equal(cells.build_pairs_cells(pos, 0.31).i, build_pairs(pos, 0.31).i)
+    got = neighbour_list.build_pairs_cells(pos, 0.31)
+    np.testing.assert_array_equal(got.i, build_pairs(pos, 0.31).i)
     with pytest.raises(ValueError, match="half the periodic length"):
         cells.build_csr(pos[:-1], 0.9, Box((0, 0), (1.6, 1.6), (True, True)))
 
@@ -145,14 +147,14 @@ def test_static_pairs_are_left_out():
 def test_skinned_list_rebuilds_only_when_needed():
     pos, box, fields = cloud((True, True), seed=8)
     re = 3.1 * L0
-    nl = cells.CellNeighbourList(re, SKIN, box)
+    nl = neighbour_list.CellNeighbourList(re, SKIN, box)
     assert nl.update(pos) and nl.builds == 1
     rng = np.random.default_rng(9)
     moved = pos + rng.uniform(-0.2, 0.2, pos.shape) * SKIN  # |d| < skin/2
     moved[0] += SIDE * L0  # a particle wrapped through the box is not a move
     assert not nl.update(moved)
     assert nl.csr is not None
-    wf, period = get_weight("wf2"), cells.box_period(box)
+    wf, period = get_weight("wf2"), geometry.box_period(box)
     pl = build_pairs(moved, re, box)
     got = kernels.number_density(compiled_weight("wf2"))(
         nl.csr.offsets, nl.csr.nbr, moved, period, re, np.empty(len(pos))
@@ -505,12 +507,12 @@ _CACHE_PROBE = textwrap.dedent(
     import sys
     import numpy as np
     from mpsbench.physics.weights import get_weight
-    from mpsbench.solvers.numba_backend import cells, formulas, kernels
+    from mpsbench.solvers.numba_backend import cells, formulas, geometry, kernels
 
     pos = np.random.default_rng(0).uniform(0.0, 1.0, (200, 2))
     csr = cells.build_csr(pos, 0.2)
     fn = kernels.number_density(formulas.weight(get_weight("wf2"))).serial
-    fn(csr.offsets, csr.nbr, pos, cells.box_period(None), 0.2, np.empty(200))
+    fn(csr.offsets, csr.nbr, pos, geometry.box_period(None), 0.2, np.empty(200))
     print(sum(fn.stats.cache_hits.values()), sum(fn.stats.cache_misses.values()))
     """
 )

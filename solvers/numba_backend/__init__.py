@@ -38,8 +38,9 @@ except ImportError as exc:  # pragma: no cover - exercised only without numba
 # microseconds per kernel on an idle machine.  A value the user set wins.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-from . import cells, formulas, kernels, mirror, pairs, steps
-from .cells import CellNeighbourList, CSRNeighbours, build_csr, build_pairs_cells
+from . import cells, formulas, geometry, kernels, mirror, neighbour_list, pairs, steps
+from .cells import CSRNeighbours, build_csr
+from .neighbour_list import CellNeighbourList, build_pairs_cells
 from .solver import NumbaSolver
 
 __all__ = [
@@ -50,8 +51,10 @@ __all__ = [
     "build_pairs_cells",
     "cells",
     "formulas",
+    "geometry",
     "kernels",
     "mirror",
+    "neighbour_list",
     "pairs",
     "steps",
 ]

@@ -38,8 +38,8 @@ from numba import njit, prange
 
 from . import formulas as fm
 from ._jit import factory, kernel
-from .cells import half_width, min_image
 from .formulas import FLUID, RADIAL, SUPPORT, inside
+from .geometry import half_width, min_image
 
 NO_MOMENT = np.zeros(0)
 """The moment array a Laplacian without a moment is given (never read)."""

@@ -27,7 +27,9 @@ from mpsbench.physics.particles import Box, Particles
 
 from . import formulas as fm
 from ._jit import factory, pick
-from .cells import CellNeighbourList, box_period, build_csr, half_width, min_image
+from .cells import build_csr
+from .geometry import box_period, half_width, min_image
+from .neighbour_list import CellNeighbourList
 
 FloatArray = NDArray[np.float64]
 

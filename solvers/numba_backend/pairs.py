@@ -27,8 +27,8 @@ from numba import prange
 
 from . import formulas as fm
 from ._jit import compiled, factory, kernel
-from .cells import half_width
 from .formulas import FLUID, SUPPORT, inside
+from .geometry import half_width
 from .kernels import positive_weight, sep
 from .steps import integer_gamma, state_of
 

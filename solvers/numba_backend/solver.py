@@ -42,8 +42,10 @@ from mpsbench.run.protocol import Capabilities, Health, Problem
 from mpsbench.run.scheme import EquationOfState, SchemeSolver
 
 from . import formulas, kernels, pairs, steps
-from .cells import CellNeighbourList, CSRNeighbours, box_period, build_csr
+from .cells import CSRNeighbours, build_csr
+from .geometry import box_period
 from .mirror import mirror_velocity
+from .neighbour_list import CellNeighbourList
 
 FloatArray = NDArray[np.float64]
 

@@ -17,8 +17,8 @@ from numba import njit, prange
 
 from . import formulas as fm
 from ._jit import compiled, factory, kernel
-from .cells import half_width
 from .formulas import DUMMY, FLUID, RADIAL, SUPPORT, inside
+from .geometry import half_width
 from .kernels import sep
 
 # --------------------------------------------------------------------------- equation of state

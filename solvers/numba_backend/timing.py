@@ -24,7 +24,7 @@ from mpsbench.physics.neighbours import build_pairs
 from mpsbench.physics.particles import Box
 from mpsbench.physics.weights import get_weight
 
-from . import cells, formulas, kernels
+from . import cells, formulas, geometry, kernels
 
 
 def _time(fn: Callable[[], object], repeat: int) -> tuple[float, float]:
@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> None:
     pos += rng.uniform(-0.05, 0.05, pos.shape)
     box = Box((0.0, 0.0), (float(side), float(side)), (True, True))
     n = len(pos)
-    period = cells.box_period(box)
+    period = geometry.box_period(box)
     wf = get_weight("wf2")
     n0, lam = ops.lattice_constants(wf, re, 1.0)
     lap = get_laplacian("xu-jin")
