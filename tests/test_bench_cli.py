@@ -7,7 +7,7 @@ import json
 import pytest
 
 from mpsbench.cli import main
-from mpsbench.run.bench import RECORD_FIELDS, spacing_for, workload
+from mpsbench.testing.bench import RECORD_FIELDS, spacing_for, workload
 
 pytest.importorskip("numba")
 

@@ -1,9 +1,9 @@
 """``mpsbench bench``: particle-steps per second of solver backends, side by side.
 
-Runs the benchmark dam break (:mod:`mpsbench.run.bench`) at each ``--n`` on each ``--solver`` and on
-the reference backend, in this process, and prints a table with the speed-up over the reference
-measured in the same run; ``--json`` prints the records instead.  Exit status: 0, or 2 for an
-unknown or unavailable solver or a bad ``--n`` / ``--steps``.
+Runs the benchmark dam break (:mod:`mpsbench.testing.bench`) at each ``--n`` on each ``--solver``
+and on the reference backend, in this process, and prints a table with the speed-up over the
+reference measured in the same run; ``--json`` prints the records instead.  Exit status: 0, or 2
+for an unknown or unavailable solver, a bad option or a bad ``--n`` / ``--steps``.
 """
 
 from __future__ import annotations
@@ -54,9 +54,9 @@ def _default_solvers() -> list[str]:
 
 def cmd_bench(args: argparse.Namespace) -> int:
     from mpsbench.errors import UsageError
-    from mpsbench.run.bench import MIN_N, format_table, run_bench
     from mpsbench.run.protocol import SOLVERS
     from mpsbench.run.specs import solver_spec
+    from mpsbench.testing.bench import MIN_N, format_table, run_bench
 
     sizes = args.n or list(DEFAULT_SIZES)
     for n in sizes:

@@ -1,8 +1,8 @@
 """Both backends on the benchmark dam break: one WC-MPS step and one neighbour rebuild (issue 8).
 
 Run with ``pytest tests/benchmarks --benchmark-only`` (the default test run skips benchmarks).
-The workload is :func:`mpsbench.run.bench.workload` (the dam break of test_bench_reference.py, l0
-chosen for about 10k, 40k and 160k particles, sheared start so the neighbour list is rebuilt
+The workload is :func:`mpsbench.testing.bench.workload` (the dam break of test_bench_reference.py,
+l0 chosen for about 10k, 40k and 160k particles, sheared start so the neighbour list is rebuilt
 every several steps).  A step round is ``STEPS`` consecutive ``step(stable_dt())`` calls, so the
 rebuilds are amortised at their natural rate; a rebuild round is one forced rebuild of the
 skinned neighbour list (reference: cKDTree pair list + static-pair filter; numba: cell-list CSR
@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mpsbench.run.bench import spacing_for, workload
 from mpsbench.run.specs import make_solver
+from mpsbench.testing.bench import spacing_for, workload
 
 STEPS = 20
 SIZES = {"10k": 10_000, "40k": 40_000, "160k": 160_000}

@@ -7,6 +7,9 @@ from typing import Any
 
 import pandas as pd
 
+from .metrics import stabilization_viscosity
+from .params import PARAMS
+
 NOISE_MEASURES = {
     "noise_spatial": "spatial pressure noise",
     "noise_temporal": "temporal stagnation-pressure noise",
@@ -70,8 +73,6 @@ def stabilization_re(r: dict[str, Any]) -> float:
         return float(v)
     if not r.get("stabilization") or not r.get("n_steps") or not r.get("alpha_s"):
         return math.nan
-    from .metrics import stabilization_viscosity
-
     dt = r["t_end"] * r["b"] / r["U"] / r["n_steps"]
     nu_s = stabilization_viscosity(r["weight"], r["re_ratio"], r["l0"], r["alpha_s"], dt)
     return float(r["U"] * r["b"] / nu_s)
@@ -90,9 +91,7 @@ def _model_key(r: dict[str, Any], params: list[str]) -> tuple[Any, ...]:
 
 
 def _params(records: list[dict[str, Any]]) -> list[str]:
-    from .case import CASE
-
-    return [p.name for p in CASE.params if any(p.name in r for r in records)]
+    return [p.name for p in PARAMS if any(p.name in r for r in records)]
 
 
 def pairs(records: list[dict[str, Any]]) -> list[tuple[dict[str, Any], dict[str, Any]]]:

@@ -32,6 +32,7 @@ import numpy as np
 from mpsbench.physics.particles import Kind
 from mpsbench.run.protocol import Problem, Solver
 from mpsbench.run.specs import SolverSpec, make_solver, solver_spec
+from mpsbench.testing.problems import dam_break_problem
 
 G = 9.81  # m/s^2
 COLUMN = (0.146, 0.292)  # m: the dam-break column (width, height)
@@ -85,16 +86,12 @@ def spacing_for(n: int) -> float:
     b = WALL_LAYERS * WALL_LENGTH
     inv = (-b + math.sqrt(b * b + 4.0 * a * n)) / (2.0 * a)  # a x^2 + b x = n, x = 1 / l0
     l0 = 1.0 / inv
-    from mpsbench.testing.problems import dam_break_problem
-
     got = dam_break_problem(l0=l0).particles.n
     return l0 * math.sqrt(got / n)  # one correction step: counts go as 1 / l0^2
 
 
 def workload(n: int | None = None, l0: float | None = None) -> Problem:
     """The benchmark dam break at about ``n`` particles (or at spacing ``l0`` [m])."""
-    from mpsbench.testing.problems import dam_break_problem
-
     if l0 is None:
         if n is None:
             raise ValueError("workload: give n or l0")
