@@ -37,8 +37,8 @@ layout (the reference: numpy over a pair list; numba: compiled kernels over cell
 ``rebuild_neighbours()``   rebuild the neighbour data now (timed by ``mpsbench bench``)
 =========================  =====================================================================
 
-``_max_speed()`` (max |u| over all particles) and ``health()`` have numpy defaults a backend may
-replace with cheaper ones.
+``_max_speed()`` (max |u| over all particles) and ``health()`` (the runner's per-step check) have
+numpy defaults over ``self.p`` that a backend may replace with compiled or on-device ones.
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ from mpsbench.physics.neighbours import build_pairs
 from mpsbench.physics.operators import STABILIZATION, lattice_constants, number_density
 from mpsbench.physics.particles import Box, Kind, Particles
 from mpsbench.physics.weights import WeightFunction, get_weight
-from mpsbench.run.protocol import Problem, SolverBase
+from mpsbench.run.protocol import Health, Problem, SolverBase, health_of
 
 FloatArray = NDArray[np.float64]
 
@@ -245,6 +245,12 @@ class SchemeSolver(SolverBase):
             "free_surface": self.free_surface,
             "dt_limit": self.dt_limit,
         }
+
+    def health(self, margin: float) -> Health:
+        """The runner's per-step check, from the particle arrays themselves (numpy)."""
+        assert self.problem is not None
+        return health_of(self.p, self.box, margin,
+                         getattr(self.problem.physics, "field_name", None))
 
     def _max_speed(self) -> float:
         """max_i |u_i| over every particle (moving walls and inflow included)."""
