@@ -10,17 +10,17 @@ from typing import Any
 
 import numpy as np
 import pytest
+from mpsbench.solvers.reference import ReferenceSolver
 
 from mpsbench import cli
 from mpsbench.errors import ConfigError
 from mpsbench.params import Option
 from mpsbench.registry import UnknownNameError
-from mpsbench.results.records import Task, execute_task, run_id, solver_folder, solver_label
+from mpsbench.results.records import execute_task, run_id, solver_folder, solver_label
 from mpsbench.results.sweep import plan
 from mpsbench.run.protocol import SOLVERS, Health
 from mpsbench.run.runner import run
 from mpsbench.run.specs import make_solver, solver_options, solver_spec
-from mpsbench.solvers.reference import ReferenceSolver
 from mpsbench.testing import problems
 from tests.fake_cases import ToyDiffusion, only_cases
 
