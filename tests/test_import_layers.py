@@ -6,9 +6,10 @@ out), with the package mapping of pyproject.toml: ``mpsbench/`` is ``mpsbench``,
 is ``mpsbench.solvers`` and ``validations/`` is ``mpsbench.validations`` (import-linter's graph
 builder walks a package's own folder only, so it would not see those two).  Contracts:
 
-* the core runs one way, from the command line down: cli -> commands -> testing -> results ->
-  cases -> run -> physics -> (registry, errors, params); a module may import its own layer and
-  the layers below it, never one above;
+* the core runs one way, from the command line down: cli (with ``__main__`` and the pytest
+  plugin: the entry points) -> commands -> testing -> results -> cases -> run -> physics ->
+  (registry, errors, params); a module may import its own layer and the layers below it, never
+  one above;
 * the core never imports ``mpsbench.solvers`` or ``mpsbench.validations`` (the built-ins come in
   through entry points, as plugins do), and those two never import each other;
 * no import cycle anywhere, solvers/ and validations/ included.
@@ -102,7 +103,7 @@ def layer(module: str) -> str | None:
         return None
     parts = module.split(".")
     head = parts[1] if len(parts) > 1 else ""
-    if head in ("cli", "__main__"):
+    if head in ("cli", "__main__", "pytest_plugin"):  # the entry points into the package
         return "cli"
     if head in LAYERS:
         return head

@@ -35,6 +35,7 @@ from mpsbench.results.case_report import Rendered
 from mpsbench.results.html import render_index
 from mpsbench.results.records import (
     COMMON_COLUMNS,
+    ENV_COLUMNS,
     atomic_write_text,
     load_records,
     solver_folder,
@@ -42,7 +43,6 @@ from mpsbench.results.records import (
 from mpsbench.results.sections import CaseSection
 from mpsbench.results.summary import render_summary
 
-ENV_COLUMNS = ("mpsbench_version", "python", "numpy_version", "machine", "git_commit")
 MANIFEST = "manifest.json"
 
 
