@@ -21,6 +21,7 @@ from mpsbench.results.compare import (
     render_markdown,
     summary_line,
 )
+from mpsbench.results.records import atomic_write_text
 
 ORDER = 40
 
@@ -73,10 +74,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
         target = Path(args.markdown) if args.markdown else (
             (cur_path if cur_path.is_dir() else cur_path.parent) / "compare.md")
         try:
-            target.write_text(md)
+            atomic_write_text(target, md)
             print(f"\nmarkdown: {target}")
         except OSError as exc:
-            raise UsageError(f"cannot write {target}: {exc}") from None
+            raise UsageError(f"--markdown {target}: cannot write: {exc.strerror or exc}"
+                             ) from None
     if result.regressions:
         print(f"\nREGRESSION: {len(result.regressions)} beyond tolerance in "
               f"{len({c.record for c in result.regressions})} record(s):")
