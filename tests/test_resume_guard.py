@@ -77,6 +77,12 @@ def test_run_hash_is_independent_of_the_readable_name(counting: type[Counting]) 
     # solver and solver options make another run
     assert run_hash("counting", "numba", one[1].params) != one[1].run_hash
     assert run_hash("counting", "reference", one[1].params, {"threads": 1}) != one[1].run_hash
+    # a task's solver spec NAME:options and a record's solver + solver_options agree
+    spec = Task("counting", "reference:threads=1", "smoke", one[1].params, "x")
+    rec = {"case": "counting", "solver": "reference", "solver_options": "threads=1",
+           **one[1].params}
+    assert spec.run_hash == record_hash(rec, case) != one[1].run_hash
+    assert record_hash({**rec, "solver_options": ""}, case) == one[1].run_hash
 
 
 def test_setting_a_swept_value_skips_the_runs_already_done(counting: type[Counting],

@@ -29,8 +29,8 @@ import pandas as pd
 
 from mpsbench.cases import Case, CaseCheck
 from mpsbench.errors import InputFileError
-from mpsbench.registry import check_name
 from mpsbench.results.escape import md_escape, md_frame
+from mpsbench.results.paths import component
 from mpsbench.results.records import COMMON_COLUMNS, atomic_write_text, load_arrays
 
 
@@ -129,7 +129,7 @@ def render_case_outputs(
     tdir = outdir / "tables"
     tdir.mkdir(exist_ok=True)
     for name, table in tables.items():
-        check_name("table", name)  # a file name: no '/', no '..'
+        component("table", name)  # a file name: no '/', no '..'
         atomic_write_text(tdir / f"{name}.csv", table.to_csv())
         atomic_write_text(tdir / f"{name}.md", markdown_table(table))
 

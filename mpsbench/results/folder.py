@@ -31,10 +31,9 @@ from typing import Any
 import pandas as pd
 
 from mpsbench.errors import InputFileError
-from mpsbench.registry import check_name
 from mpsbench.results.case_report import Rendered
 from mpsbench.results.html import render_index
-from mpsbench.results.paths import atomic_copy, inside, safe_dir
+from mpsbench.results.paths import atomic_copy, component, inside, safe_dir
 from mpsbench.results.records import COMMON_COLUMNS, atomic_write_text, load_records
 from mpsbench.results.sections import CaseSection
 from mpsbench.results.summary import render_summary
@@ -66,13 +65,13 @@ def copy_figures(out: Path, sections: list[CaseSection]) -> dict[Path, Path]:
         if sec.combined is not None:
             parts.append(("", sec.combined))
         parts += [(s.solver if several else "", s.rendered) for s in sec.solvers]
-        case_dir = out / "figures" / check_name("case", sec.name)
+        case_dir = out / "figures" / component("case", sec.name)
         for sub, rendered in parts:
-            dest = case_dir / check_name("solver", sub) if sub else case_dir
+            dest = case_dir / component("solver", sub) if sub else case_dir
             for fig in rendered.figures:
                 if fig.exists():
                     safe_dir(out, dest)
-                    atomic_copy(fig, inside(out, dest / check_name("figure", fig.name)))
+                    atomic_copy(fig, inside(out, dest / component("figure", fig.name)))
                     copies[fig] = dest / fig.name
     return copies
 

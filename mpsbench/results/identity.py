@@ -11,8 +11,10 @@ Records written before the hash existed are matched by recomputing it from their
 (a parameter a record lacks takes the case's default, as ``mpsbench compare`` does).
 
 Solver options: a solver given with options (issue #14, e.g. ``numba:threads=1``) is another
-run than the bare solver.  :func:`run_hash` takes them as a mapping; records carry them in the
-``OPTIONS_COLUMN`` column, which :func:`record_hash` reads when it is there.
+run than the bare solver.  A task's solver may be such a spec (``NAME:key=value,...``): its
+options are split off; records carry the options in the ``OPTIONS_COLUMN`` column (text
+``key=value,...`` or a mapping), which :func:`record_hash` reads when it is there.  No options,
+an empty text and an empty mapping are the same (the backend's defaults).
 """
 
 from __future__ import annotations
@@ -47,14 +49,25 @@ def canonical(value: Any) -> Any:
     return str(value)
 
 
-def run_hash(
-    case: str, solver: str, params: Mapping[str, Any], options: Mapping[str, Any] | None = None
-) -> str:
+Options = Mapping[str, Any] | str | None
+
+
+def canonical_options(options: Options) -> str:
+    """Solver options as one text: ``key=value,...`` (a mapping sorted by key), '' for none."""
+    if not options:
+        return ""
+    if isinstance(options, str):
+        return options.strip()
+    return ",".join(f"{k}={canonical(v)}" for k, v in sorted(options.items(), key=lambda kv:
+                                                               str(kv[0])))
+
+
+def run_hash(case: str, solver: str, params: Mapping[str, Any], options: Options = None) -> str:
     """The identity of a run: a hex digest of case, solver, solver options and parameters."""
     payload = {
         "case": case,
         "solver": solver,
-        "options": canonical(dict(options or {})),
+        "options": canonical_options(options),
         "params": canonical(dict(params)),
     }
     text = json.dumps(payload, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
@@ -79,9 +92,9 @@ def record_params(record: Mapping[str, Any], case: Any) -> dict[str, Any] | None
     return out
 
 
-def record_options(record: Mapping[str, Any]) -> dict[str, Any]:
+def record_options(record: Mapping[str, Any]) -> Options:
     options = record.get(OPTIONS_COLUMN)
-    return dict(options) if isinstance(options, Mapping) else {}
+    return options if isinstance(options, (str, Mapping)) else None
 
 
 def record_hash(record: Mapping[str, Any], case: Any | None) -> str | None:
@@ -97,10 +110,12 @@ def record_hash(record: Mapping[str, Any], case: Any | None) -> str | None:
     return stored if isinstance(stored, str) and stored else None
 
 
-def task_hash(case: str, solver: str, params: Mapping[str, Any],
-              options: Mapping[str, Any] | None = None) -> str:
+def task_hash(case: str, solver: str, params: Mapping[str, Any], options: Options = None) -> str:
     """The identity of a planned run, computed as :func:`record_hash` will compute it from the
-    run's record (through the case's parameters when the case can be loaded)."""
+    run's record (through the case's parameters when the case can be loaded).  ``solver`` may
+    be a spec ``NAME:key=value,...``: the options are split off, as the record stores them."""
+    name, _, spec_options = solver.partition(":")
+    solver, options = name, options or spec_options
     try:
         from mpsbench.cases import get_case
 

@@ -9,11 +9,24 @@ write outside its folder.
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
 from mpsbench.errors import InputFileError
 from mpsbench.results.records import _atomic_replace
+
+COMPONENT_CHARS = "letters, digits, '=', '.', '_', '+', '-', starting with a letter or digit"
+_COMPONENT_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9=._+-]{0,199}")
+
+
+def component(kind: str, name: object) -> str:
+    """``name`` when it may be one folder or file name inside a results folder (no '/', '\\',
+    '..', NUL, leading dot: see :data:`COMPONENT_CHARS`); else InputFileError."""
+    if not isinstance(name, str) or not _COMPONENT_RE.fullmatch(name) or ".." in name:
+        raise InputFileError(f"{kind} name {str(name)[:80]!r} is not allowed as a file or "
+                             f"folder name: {COMPONENT_CHARS}, no '..'")
+    return name
 
 
 def inside(base: Path, path: Path) -> Path:

@@ -16,9 +16,8 @@ import pandas as pd
 
 from mpsbench.cases import Case
 from mpsbench.errors import where
-from mpsbench.registry import check_name
 from mpsbench.results.case_report import Rendered, render_case_outputs
-from mpsbench.results.paths import inside
+from mpsbench.results.paths import component, inside
 
 
 @dataclass
@@ -71,7 +70,7 @@ def render_case(case: Case, records: list[dict[str, Any]], folder: Path) -> Case
     section.by_solver = solver_table(case, records)
     for solver in solvers:
         recs = [r for r in records if r.get("solver") == solver]
-        sub = inside(folder, folder / "by-solver" / check_name("solver", solver))
+        sub = inside(folder, folder / "by-solver" / component("solver", solver))
         out = render_case_outputs(case, recs, sub, arrays_dir=folder)
         section.solvers.append(SolverSection(solver, _version(recs), out))
     return section
