@@ -1,7 +1,9 @@
 """Tiny cases for the validate-all / compare / report tests (seconds, not minutes).
 
 ``ToyDiffusion`` runs a real (very small) periodic diffusion problem on a solver through the
-runner, so records carry real wall times and particle counts; ``ToyCounter`` needs no solver.
+runner, so records carry real wall times and particle counts; ``ToyCounter`` needs no solver;
+``Shaky`` has a run that completes, one that diverges and one that raises, and a check that
+holds, one that does not and one that cannot decide.
 Both have knobs (class attributes) the tests turn: ``error_scale`` multiplies the error metric
 (a model change that doubles the error), ``fail_check`` makes a check fail, ``broken_figures``
 makes the figure code raise.  :func:`only_cases` swaps the case registry for the test.
@@ -20,8 +22,8 @@ import pandas as pd
 from mpsbench.solvers.reference import ReferenceSolver
 
 from mpsbench.cases import CASES, Case, CaseCheck, CaseRun, Param
-from mpsbench.run.protocol import SOLVERS
-from mpsbench.run.runner import run
+from mpsbench.run.protocol import SOLVERS, Status
+from mpsbench.run.runner import RunResult, run
 from mpsbench.testing.problems import diffusion_problem
 
 
@@ -114,6 +116,29 @@ class ToyCounter(Case):
     def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
         ok = all((r.get("drift") or math.inf) < 1 for r in records)
         return [CaseCheck("drift small", ok, "drift < 1")]
+
+
+class Shaky(Case):
+    """Three runs: one completes, one diverges, one fails (raises)."""
+
+    name = "shaky"
+    params = (Param("mode", "ok", "what the run does", kind=str,
+                    choices=("ok", "diverge", "raise")),)
+    tiers = {"smoke": [{"mode": ["ok", "diverge", "raise"]}]}
+    metrics = {"value": "a number [-]"}
+
+    def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
+        if params["mode"] == "raise":
+            raise RuntimeError("solver crashed \x1b[31mred\x1b[0m")  # escapes XML cannot hold
+        status = Status.DIVERGED if params["mode"] == "diverge" else Status.COMPLETED
+        reason = "velocity above 100 m/s at step 3" if status is Status.DIVERGED else ""
+        result = RunResult(status, reason, 0.1, 3, 0.01, 300.0, 100)
+        return CaseRun({"value": 1.0}, [result])
+
+    def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
+        return [CaseCheck("value is one", True, "1 == 1"),
+                CaseCheck("never holds", False, "0.3 > 0.1"),
+                CaseCheck("cannot decide", None, "needs two resolutions")]
 
 
 @contextmanager

@@ -12,6 +12,7 @@ import pytest
 
 from mpsbench import cli
 from mpsbench.results.compare import CompareError, Rule, compare, load_results, metric_rule
+from mpsbench.results.records import ENV_COLUMNS
 from tests.fake_cases import ToyCounter, ToyDiffusion, only_cases
 
 Toys = tuple[ToyDiffusion, ToyCounter]
@@ -129,6 +130,26 @@ def test_diverged_now_is_a_regression(baseline: Path, tmp_path: Path,
     assert "laplacian=xu-jin" in out and "status completed -> diverged" in out
     # and the other way round it is an improvement
     assert run_compare(str(current), str(baseline)) == 0
+
+
+def test_environment_columns_are_no_metrics(baseline: Path, tmp_path: Path) -> None:
+    """Another machine, a dirty checkout, a baseline older than the provenance columns: the
+    environment (records.ENV_COLUMNS) is never compared as a metric."""
+    def elsewhere(rec: dict[str, Any]) -> None:
+        rec.update(cpu_count=64, cpu_cores=32, git_dirty=not rec["git_dirty"],
+                   numba_version="9.9", machine="elsewhere")
+
+    def older(rec: dict[str, Any]) -> None:
+        for key in ENV_COLUMNS:
+            if key not in ("mpsbench_version", "python", "numpy_version", "machine",
+                           "git_commit"):
+                rec.pop(key, None)
+
+    current = edited(baseline, tmp_path / "cur", elsewhere)
+    old = edited(baseline, tmp_path / "old", older)
+    for base in (baseline, old):
+        result = compare(load_results(base), load_results(current))
+        assert result.changes == [], [(c.metric, c.kind) for c in result.changes]
 
 
 def test_metric_missing_now_is_a_regression(baseline: Path, tmp_path: Path) -> None:

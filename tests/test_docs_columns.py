@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from mpsbench.cases import get_case
+from mpsbench.results.records import COMMON_COLUMNS, ENV_COLUMNS
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "columns.md"
 
@@ -27,3 +28,17 @@ def test_every_column_of_the_case_is_documented(case: str) -> None:
     missing = [n for n in names if f"`{n}`" not in section
                and f"`{re.sub(r'_sensor[1-4]$', '_sensor<k>', n)}`" not in section]
     assert not missing, f"{case}: not in docs/columns.md: {missing}"
+
+
+def test_every_common_and_environment_column_is_documented() -> None:
+    section = _section(DOC.read_text(), "Columns of every record")
+    missing = [n for n in (*COMMON_COLUMNS, *ENV_COLUMNS) if f"`{n}`" not in section]
+    assert not missing, f"not in docs/columns.md, 'Columns of every record': {missing}"
+
+
+def test_every_bench_record_field_is_documented() -> None:
+    from mpsbench.run.bench import RECORD_FIELDS
+
+    section = _section(DOC.read_text(), "mpsbench bench")
+    missing = [n for n in RECORD_FIELDS if f"`{n}`" not in section]
+    assert not missing, f"not in docs/columns.md, 'mpsbench bench': {missing}"

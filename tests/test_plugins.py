@@ -291,7 +291,7 @@ def test_example_plugin_in_a_fresh_venv(tmp_path: Path) -> None:
     py = str(env_dir / "bin" / "python")
     exe = env_dir / "bin" / "mpsbench"
     # the build backend from this environment: no network for build isolation
-    _run([py, "-m", "pip", "install", "--quiet", "setuptools>=68", "wheel"])
+    _run([py, "-m", "pip", "install", "--quiet", "setuptools>=77"])
     _run([py, "-m", "pip", "install", "--quiet", "--no-build-isolation", str(ROOT)])
     _run([py, "-m", "pip", "install", "--quiet", "--no-build-isolation", f"{PLUGIN}[test]"])
     work = tmp_path / "work"

@@ -3,25 +3,21 @@
 Prints what got better, worse, appeared or vanished and writes the same as Markdown (for a pull
 request).  Exit status: 0 no regression, 1 a regression beyond a metric's tolerance, 2 a baseline
 or current set that cannot be read or has no record in common with the other.
+
+For CI: ``--json`` prints the comparison as JSON instead (:mod:`mpsbench.results.compare_json`),
+and with ``$GITHUB_STEP_SUMMARY`` set the Markdown is appended to the job summary.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import json
+import sys
 from pathlib import Path
 from typing import Any
 
 from mpsbench.errors import UsageError
-from mpsbench.results.compare import (
-    CompareError,
-    changes_frame,
-    compare,
-    fmt_value,
-    load_results,
-    render_markdown,
-    summary_line,
-)
-from mpsbench.results.records import atomic_write_text
 
 ORDER = 40
 
@@ -45,10 +41,38 @@ def register(sub: Any) -> None:
     p.add_argument("--markdown", default=None, metavar="PATH",
                    help="where to write the Markdown table (default: compare.md in CURRENT's "
                    "folder; '-' to skip)")
+    p.add_argument("--json", action="store_true",
+                   help="print the comparison as JSON (schema mpsbench.compare/1, docs/ci.md) on "
+                   "stdout; the text report goes to stderr")
     p.set_defaults(func=cmd_compare)
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
+    if not args.json:
+        return _compare(args)[0]
+    # stdout carries the JSON document only, so it can be redirected to a file
+    with contextlib.redirect_stdout(sys.stderr):
+        status, doc = _compare(args)
+    print(json.dumps(doc, indent=1))
+    return status
+
+
+def _compare(args: argparse.Namespace) -> tuple[int, dict[str, Any]]:
+    """Compare, print the text report, write the Markdown; return (exit status, JSON document)."""
+    # imported here, not at the top: pandas would slow down 'mpsbench --help'
+    from mpsbench.results.compare import (
+        CompareError,
+        changes_frame,
+        compare,
+        fmt_value,
+        load_results,
+        render_markdown,
+        summary_line,
+    )
+    from mpsbench.results.compare_json import comparison_to_json
+    from mpsbench.results.records import atomic_write_text
+    from mpsbench.results.step_summary import append_step_summary
+
     for name in ("rtol", "atol"):
         value = getattr(args, name)
         if value is not None and not value >= 0:
@@ -69,6 +93,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
         print("\ntiming (informational):")
         print(result.timing.to_markdown(index=False, floatfmt=".4g"))
     md = render_markdown(result, args.baseline, args.current, (base[0], cur[0]))
+    append_step_summary(md)
+    doc = comparison_to_json(result, args.baseline, args.current, meta=(base[0], cur[0]),
+                             rtol=args.rtol, atol=args.atol)
     if args.markdown != "-":
         cur_path = Path(args.current)
         target = Path(args.markdown) if args.markdown else (
@@ -87,6 +114,6 @@ def cmd_compare(args: argparse.Namespace) -> int:
             note = f"; {ch.note}" if ch.note else ""
             values = f"{fmt_value(ch.baseline)} -> {fmt_value(ch.current)}"
             print(f"  {ch.record}: {ch.metric} {values}{rel} (rule {ch.rule}{note})")
-        return 1
+        return 1, doc
     print("\nOK: no regression beyond tolerance")
-    return 0
+    return 0, doc

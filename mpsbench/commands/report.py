@@ -17,19 +17,14 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from mpsbench.cases import Case, get_case
 from mpsbench.errors import UsageError
-from mpsbench.results.folder import ENV_COLUMNS, case_folders, read_manifest, write_top_level
-from mpsbench.results.lock import folder_lock
-from mpsbench.results.sections import (
-    CaseSection,
-    case_from_disk,
-    safe_render_case,
-    solver_order,
-    verdict,
-)
+
+# pandas and the cases are imported inside the functions: 'mpsbench --help' stays fast
+if TYPE_CHECKING:
+    from mpsbench.cases import Case
+    from mpsbench.results.sections import CaseSection
 
 ORDER = 35
 
@@ -48,6 +43,8 @@ def register(sub: Any) -> None:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    from mpsbench.results.lock import folder_lock
+
     out = Path(args.dir)
     if not out.is_dir():
         raise UsageError(f"{out}: no such folder")
@@ -56,6 +53,10 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace, out: Path) -> int:
+    from mpsbench.cases import get_case
+    from mpsbench.results.folder import case_folders, read_manifest, write_top_level
+    from mpsbench.results.sections import CaseSection, case_from_disk, safe_render_case, verdict
+
     manifest = read_manifest(out)
     found = case_folders(out)
     if not found:
@@ -101,6 +102,9 @@ def _report(args: argparse.Namespace, out: Path) -> int:
 
 def _fill_manifest(manifest: dict[str, Any], sections: list[CaseSection]) -> None:
     """A folder without manifest.json (or an old one): take tier, solvers, env from the records."""
+    from mpsbench.results.records import ENV_COLUMNS
+    from mpsbench.results.sections import solver_order
+
     records = [r for s in sections for r in s.records]
     if not records:
         return

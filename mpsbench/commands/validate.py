@@ -21,21 +21,30 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from mpsbench.cases import CASES, TIERS, Case, case_order, get_case
 from mpsbench.errors import UsageError
-from mpsbench.results.case_report import check_lines
-from mpsbench.results.folder import MANIFEST, write_top_level
-from mpsbench.results.guard import check_run_count, grid_size, guard_tasks
-from mpsbench.results.lock import folder_lock
-from mpsbench.results.records import Task, atomic_write_text, environment
-from mpsbench.results.sections import CaseSection, safe_render_case, verdict
-from mpsbench.results.sweep import plan, print_progress, run_tasks
-from mpsbench.run.protocol import SOLVERS
+
+# The heavy modules (numpy, pandas, scipy behind the cases and results) are imported inside
+# the functions that use them, so 'mpsbench --help' and '--version' stay fast.
+if TYPE_CHECKING:
+    from mpsbench.cases import Case
+    from mpsbench.results.records import Task
+    from mpsbench.results.sections import CaseSection
 
 ORDER = 30
 MAX_AUTO_JOBS = 4
+
+
+def _tier(value: str) -> str:
+    """``--tier``: checked when parsed, without importing the cases to build the parser."""
+    from mpsbench.cases import TIERS
+
+    if value not in TIERS:
+        # argparse's own wording for choices=, which this replaces
+        raise argparse.ArgumentTypeError(
+            f"invalid choice: {value!r} (choose from {', '.join(map(repr, TIERS))})")
+    return value
 
 
 def register(sub: Any) -> None:
@@ -50,7 +59,7 @@ def register(sub: Any) -> None:
     p.add_argument("--list", action="store_true", help="list the registered cases and exit")
     p.add_argument("--solver", action="append", default=None, metavar="NAME",
                    help="solver backend (repeatable; default: reference)")
-    p.add_argument("--tier", default="quick", choices=TIERS,
+    p.add_argument("--tier", default="quick", type=_tier, metavar="TIER",
                    help="smoke (seconds, for CI), quick (default, minutes) or paper (full grid)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE[,VALUE...]",
                    help="override a parameter for every run; a comma list sweeps it "
@@ -62,6 +71,9 @@ def register(sub: Any) -> None:
                    help="output folder (default: reports/<case>-<tier>-<time> for one case, "
                    "reports/<YYYYmmdd-HHMM>-<tier> for 'all')")
     p.add_argument("--force", action="store_true", help="re-run runs whose record already exists")
+    p.add_argument("--junit-xml", default=None, metavar="PATH",
+                   help="also write a JUnit XML report: one test case per run and per check "
+                   "(docs/ci.md)")
     add_run_safety_options(p)
     p.set_defaults(func=cmd_validate)
 
@@ -112,6 +124,9 @@ def default_all_out(tier: str, root: Path = Path("reports")) -> Path:
 
 
 def cmd_validate(args: argparse.Namespace) -> int:
+    from mpsbench.cases import CASES, case_order, get_case
+    from mpsbench.run.protocol import SOLVERS
+
     if args.list:
         for name in case_order(CASES.names()):
             try:
@@ -135,16 +150,26 @@ def cmd_validate(args: argparse.Namespace) -> int:
 
 
 def _manifest(args: argparse.Namespace, solvers: list[str], jobs: int) -> dict[str, Any]:
+    from mpsbench.results.records import environment
+
     return {
         "command": " ".join(["mpsbench validate", args.case, "--tier", args.tier]
                             + [f"--solver {s}" for s in solvers] + [f"--jobs {jobs}"]),
         "case": args.case, "tier": args.tier, "solvers": solvers, "jobs": jobs,
         "started": _dt.datetime.now().isoformat(timespec="seconds"),
-        "environment": environment(), "cases": [],
+        "environment": environment(solvers), "cases": [],
     }
 
 
 def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
+    from mpsbench.cases import get_case
+    from mpsbench.results.folder import MANIFEST, write_top_level
+    from mpsbench.results.guard import check_run_count, grid_size, guard_tasks
+    from mpsbench.results.lock import folder_lock
+    from mpsbench.results.records import atomic_write_text
+    from mpsbench.results.sections import safe_render_case
+    from mpsbench.results.sweep import plan, print_progress, run_tasks
+
     case = get_case(args.case)
     overrides = parse_overrides(case, args.set)
     check_run_count(grid_size(case, args.tier, overrides) * len(solvers), args.yes,
@@ -165,6 +190,7 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
         atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
         ok = write_top_level(out, [section], manifest, [p.name for p in case.params],
                              write_results=False)
+        ci_outputs(args, [section], manifest)
     print_verdicts([section])
     print(f"report: {os.path.join(str(out), 'report.md')}")
     print(f"index:  {out / 'index.html'}")
@@ -172,6 +198,12 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
 
 
 def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
+    from mpsbench.cases import CASES, case_order, get_case
+    from mpsbench.results.guard import check_run_count, guard_tasks
+    from mpsbench.results.lock import folder_lock
+    from mpsbench.results.sections import CaseSection
+    from mpsbench.results.sweep import plan
+
     out = Path(args.out) if args.out else default_all_out(args.tier)
     jobs = args.jobs or max(1, min(os.cpu_count() or 1, MAX_AUTO_JOBS))
     manifest = _manifest(args, solvers, jobs)
@@ -199,6 +231,9 @@ def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
 
 
 def _grid_size(name: str, tier: str) -> int:
+    from mpsbench.cases import get_case
+    from mpsbench.results.guard import grid_size
+
     try:
         return grid_size(get_case(name), tier)
     except Exception:  # noqa: BLE001 - a broken case is reported (and planned) below
@@ -209,6 +244,12 @@ def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
                          manifest: dict[str, Any], t0: float, names: list[str],
                          cases: list[Case], broken: dict[str, CaseSection],
                          tasks: list[Task]) -> int:
+    from mpsbench.cases import get_case
+    from mpsbench.results.folder import MANIFEST, write_top_level
+    from mpsbench.results.records import atomic_write_text
+    from mpsbench.results.sections import safe_render_case, verdict
+    from mpsbench.results.sweep import print_progress, run_tasks
+
     print(f"validate all: {len(tasks)} runs of {len(cases)} cases x "
           f"{len(manifest['solvers'])} solver(s), tier {args.tier}, {jobs} job(s) -> {out}",
           file=sys.stderr)
@@ -236,12 +277,28 @@ def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
     params = [p.name for c in cases for p in c.params]
     ok = write_top_level(out, sections, manifest, params)
+    ci_outputs(args, sections, manifest)
     print_verdicts(sections)
     print(f"{verdict(ok)}: {sum(s.passed for s in sections)}/{len(sections)} cases pass "
           f"in {manifest['wall_s']:.0f} s")
     print(f"summary: {out / 'summary.md'}")
     print(f"index:   {out / 'index.html'}")
     return 0 if ok else 1
+
+
+def ci_outputs(args: argparse.Namespace, sections: list[CaseSection],
+               manifest: dict[str, Any]) -> None:
+    """The outputs for CI: ``--junit-xml`` and the job summary when ``$GITHUB_STEP_SUMMARY`` is
+    set (:mod:`mpsbench.results.junit`, :mod:`mpsbench.results.step_summary`)."""
+    from mpsbench.results.junit import write_junit
+    from mpsbench.results.step_summary import append_step_summary, validation_summary
+
+    if args.junit_xml:
+        try:
+            print(f"junit:  {write_junit(args.junit_xml, sections, manifest)}")
+        except OSError as exc:
+            raise UsageError(f"--junit-xml {args.junit_xml}: cannot write: {exc}") from None
+    append_step_summary(validation_summary(sections, manifest))
 
 
 def heavy_first(tasks: list[Task]) -> list[Task]:
@@ -255,6 +312,9 @@ def heavy_first(tasks: list[Task]) -> list[Task]:
 
 
 def print_verdicts(sections: list[CaseSection]) -> None:
+    from mpsbench.results.case_report import check_lines
+    from mpsbench.results.sections import verdict
+
     for sec in sections:
         if sec.error:
             print(f"FAIL {sec.name}: {sec.error}")

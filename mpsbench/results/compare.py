@@ -43,12 +43,11 @@ from mpsbench.errors import ConfigError, MpsbenchError
 from mpsbench.results.escape import md_escape, md_frame
 from mpsbench.results.identity import HASH_COLUMN, OPTIONS_COLUMN
 from mpsbench.results.lock import held_by_other
-from mpsbench.results.records import load_records
+from mpsbench.results.records import ENV_COLUMNS, load_records
 
 REQUIRED = ("case", "solver", "status")
 IDENTITY = ("case", "solver", "solver_version", "tier", "run_id", HASH_COLUMN, OPTIONS_COLUMN,
             "status", "reason")
-ENVIRONMENT = ("mpsbench_version", "python", "numpy_version", "machine", "git_commit")
 TIMING = {"wall_time_s": "lower", "particle_steps_per_s": "higher", "elapsed_s": "lower"}
 COUNTERS = ("n_particles", "n_steps", "n_solver_runs")
 ERROR_WORDS = ("error", "noise", "drift")
@@ -344,7 +343,7 @@ def _number(v: Any) -> float | None:
 
 
 def _metric_names(b: dict[str, Any], c: dict[str, Any], case: Case | None) -> list[str]:
-    skip = set(IDENTITY) | set(ENVIRONMENT) | {p.name for p in (case.params if case else ())}
+    skip = set(IDENTITY) | set(ENV_COLUMNS) | {p.name for p in (case.params if case else ())}
     return [k for k in dict.fromkeys([*b, *c]) if k not in skip]
 
 

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import json
 import os
-import platform
 import shutil
 import signal
 import sys
@@ -170,7 +169,9 @@ def run_detached(task: Task, env: dict[str, Any]) -> tuple[str, bytes | None]:
     record text is exactly what :func:`~mpsbench.results.records.execute_task` writes, so the client
     stores byte-for-byte the same record as the local executor would.
     """
-    env = {**env, "machine": f"{platform.system()} {platform.machine()} {os.cpu_count()} cpu"}
+    from mpsbench.results.provenance import machine_environment
+
+    env = {**env, **machine_environment()}  # the worker's machine, not the client's
     scratch = tempfile.mkdtemp(prefix="mpsbench-run-")
     try:
         execute_task(task, scratch, env)

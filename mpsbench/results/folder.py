@@ -34,11 +34,15 @@ from mpsbench.errors import InputFileError
 from mpsbench.results.case_report import Rendered
 from mpsbench.results.html import render_index
 from mpsbench.results.paths import atomic_copy, component, inside, safe_dir
-from mpsbench.results.records import COMMON_COLUMNS, atomic_write_text, load_records
+from mpsbench.results.records import (
+    COMMON_COLUMNS,
+    ENV_COLUMNS,
+    atomic_write_text,
+    load_records,
+)
 from mpsbench.results.sections import CaseSection
 from mpsbench.results.summary import render_summary
 
-ENV_COLUMNS = ("mpsbench_version", "python", "numpy_version", "machine", "git_commit")
 MANIFEST = "manifest.json"
 
 

@@ -17,7 +17,6 @@ import math
 import os
 import platform
 import re
-import subprocess
 import tempfile
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -27,7 +26,6 @@ from typing import Any
 
 import numpy as np
 
-import mpsbench
 from mpsbench.cases import get_case
 from mpsbench.errors import InputFileError, where
 from mpsbench.registry import name_problem
@@ -106,27 +104,32 @@ class Task:
             self.run_hash = task_hash(self.case, self.solver, self.params)
 
 
-def environment() -> dict[str, Any]:
-    """Versions and machine description stored in every record."""
-    return {
-        "mpsbench_version": mpsbench.__version__,
+ENV_COLUMNS = (
+    "mpsbench_version", "git_commit", "git_dirty", "solver_commit", "python", "numpy_version",
+    "scipy_version", "numba_version", "pandas_version", "os", "cpu_model", "cpu_count",
+    "cpu_cores", "machine",
+)
+"""Where and with what a run was made: the last columns of every record (docs/columns.md).
+``environment()`` gives all but ``solver_commit``, which :func:`execute_task` adds per record."""
+
+
+def environment(solvers: Sequence[str] = ()) -> dict[str, Any]:
+    """Versions, commits and machine description stored in every record (cached per process).
+
+    With ``solvers`` (for a manifest or a bench), also ``solvers``: each one's
+    ``solver_version`` and ``solver_commit``.
+    """
+    from mpsbench.results import provenance
+
+    env: dict[str, Any] = {
+        **provenance.mpsbench_environment(),
         "python": platform.python_version(),
-        "numpy_version": np.__version__,
-        "machine": f"{platform.system()} {platform.machine()} {os.cpu_count()} cpu",
-        "git_commit": _git_commit(),
+        **dict(provenance.library_versions()),
+        **provenance.machine_environment(),
     }
-
-
-def _git_commit() -> str:
-    here = Path(__file__).resolve().parent
-    try:
-        out = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True, text=True,
-            timeout=5, check=False,
-        )
-        return out.stdout.strip() if out.returncode == 0 else ""
-    except (OSError, subprocess.SubprocessError):
-        return ""
+    if solvers:
+        env["solvers"] = {s: provenance.solver_provenance(s) for s in solvers}
+    return env
 
 
 def execute_task(task: Task, outdir: str, env: dict[str, Any]) -> dict[str, Any]:
@@ -175,10 +178,17 @@ def execute_task(task: Task, outdir: str, env: dict[str, Any]) -> dict[str, Any]
         )
     record["elapsed_s"] = round(time.perf_counter() - t0, 4)
     record.update(env)
+    record["solver_commit"] = _solver_commit(task.solver)
     if arrays:
         _atomic_npz(runs / f"{task.run_id}.npz", arrays)
     atomic_write_text(runs / f"{task.run_id}.json", json.dumps(record, indent=1, default=_plain))
     return record
+
+
+def _solver_commit(solver: str) -> str | None:
+    from mpsbench.results.provenance import solver_provenance
+
+    return solver_provenance(solver)["solver_commit"]
 
 
 def _plain(v: Any) -> Any:

@@ -6,20 +6,40 @@ Laplacian, stabilization on) with l0 chosen to give about ``n`` particles (fluid
 dummy), and the sheared start u = sqrt(2 g H) y / H so that the skinned neighbour list is
 rebuilt every several steps, as in a real run (a column at rest would never rebuild it).
 
-For each backend and size: one cold setup and first step (which pays for JIT compilation or
-loading compiled code from the cache), the same again warm (the difference is ``jit_compile_s``),
-a few warm-up steps, then ``steps`` consecutive ``step(stable_dt())`` calls timed as a block
-(wall and process CPU time; neighbour rebuilds happen at their natural rate inside the block,
-so they are included), and one neighbour rebuild timed alone.  Every figure counts all
-particles.  CPU time sums all threads of the process: on a loaded machine it is the steadier
-figure, and ``load_avg`` records the 1-minute load average at the start of each measurement.
+How one size is timed (:func:`run_bench`), for the contenders ``A, B, ...`` in order:
 
-A backend can offer ``rebuild_neighbours()`` (rebuild the neighbour list now); without it the
-rebuild time is estimated from the steps that rebuilt against those that did not.
+1. *Cold start*, each contender in turn: a fresh instance, ``setup`` and a first step (this pays
+   for JIT compilation or for loading compiled code from the cache).  The instance is then
+   freed before anything is timed, so its memory does not weigh on the others.
+2. *Warm start*: a second fresh instance, ``setup`` and a first step (cold minus warm is
+   ``jit_compile_s``), then ``warmup`` steps.  The warm instances of all contenders stay alive.
+3. *Rounds*: ``A B A B ...``: in each round every contender advances one block of ``steps``
+   consecutive ``step(stable_dt())`` calls (neighbour rebuilds happen inside at their natural
+   rate), timed in wall and process CPU time.  Rounds repeat until ``repeat`` of them, or
+   until the blocks have taken ``budget`` seconds in all (and at least :data:`MIN_ROUNDS`).
+   All contenders advance by the same number of steps, so they stay at the same stage of
+   the same run.
+4. One neighbour rebuild timed alone per contender (best of 3).
+
+Figures per contender are the median over its blocks, with quartiles and min/max, so one
+block slowed by another process does not move them.  ``speedup_vs_first`` is the median over
+rounds of (particle-steps/s / the first contender's in the same round): both blocks of a round
+ran within a fraction of a second of each other under the same load, which is what makes the
+ratio steadier than either absolute figure.  ``time_to_solution_speedup`` is the same for the
+wall time per simulated second: how much sooner the same physical time is reached (it differs
+from the speed-up when the contenders' time steps differ, as PySPH's do).  Every figure counts
+all particles.  CPU time sums all threads of the process; ``load_avg`` and ``load_avg_end``
+are the 1-minute load averages at the start and end of a size.
+
+A contender is anything with ``setup(problem)``, ``stable_dt()`` and ``step(dt)``: a solver
+backend (:func:`new_solver`) or an outside code on the same particles (:mod:`.bench_pysph`).
+One that offers ``rebuild_neighbours()`` has its rebuild timed directly; without it the rebuild
+time is estimated from the steps that rebuilt against those that did not (``counters``).
 """
 
 from __future__ import annotations
 
+import gc
 import math
 import os
 import time
@@ -30,7 +50,7 @@ from typing import Any
 import numpy as np
 
 from mpsbench.physics.particles import Kind
-from mpsbench.run.protocol import Problem, Solver, get_solver_class
+from mpsbench.run.protocol import Problem, Solver, get_solver_class, make_solver
 
 G = 9.81  # m/s^2
 COLUMN = (0.146, 0.292)  # m: the dam-break column (width, height)
@@ -39,41 +59,95 @@ WALL_LAYERS = 4  # one wall row and three dummy rows
 WALL_LENGTH = TANK_LENGTH + 2 * 0.6  # m: floor and two side walls of the 0.6 m high tank
 MIN_N = 500
 
+SIZES = {"10k": 10_000, "40k": 40_000, "160k": 160_000}
+"""The sizes of the pytest-benchmark suite (tests/benchmarks); ``mpsbench bench`` runs the
+first two by default (DEFAULT_SIZES)."""
+DEFAULT_SIZES = (SIZES["10k"], SIZES["40k"])
+DEFAULT_STEPS = 20  # steps per block
+DEFAULT_BUDGET_S = 20.0  # timed seconds per size, all contenders together
+WARMUP_STEPS = 3
+MIN_ROUNDS = 5  # below this a median and quartiles say little
+
 RECORD_FIELDS = (
-    "solver", "n", "n_fluid", "threads", "steps", "step_ms", "cpu_ms_per_step", "rebuild_ms",
-    "rebuild_method", "rebuilds_per_step", "particle_steps_per_s", "particle_steps_per_cpu_s",
-    "speedup_vs_reference", "jit_compile_s", "setup_s", "first_step_s", "load_avg", "l0",
+    "solver", "n", "n_fluid", "threads", "steps", "rounds", "particle_steps_per_s",
+    "particle_steps_per_s_q1", "particle_steps_per_s_q3", "particle_steps_per_s_min",
+    "particle_steps_per_s_max", "speedup_vs_first", "speedup_q1", "speedup_q3",
+    "speedup_min", "speedup_max", "first_solver", "time_to_solution_speedup", "dt_mean",
+    "wall_s_per_sim_s", "step_ms", "cpu_ms_per_step", "particle_steps_per_cpu_s", "rebuild_ms",
+    "rebuild_method", "rebuilds_per_step", "jit_compile_s", "setup_s", "first_step_s",
+    "load_avg", "load_avg_end", "l0", "solver_version", "solver_commit", "block_wall_s",
 )
 
 
 @dataclass
 class BenchRecord:
-    """One backend at one size.  Times in ms (per step) or s; rates in particle-steps/s."""
+    """One contender at one size.  Times in ms (per step) or s; rates in particle-steps/s;
+    ``_q1`` / ``_q3`` / ``_min`` / ``_max``: quartiles and extremes over the blocks (rates)
+    or the rounds (ratios)."""
 
     solver: str
     n: int
     n_fluid: int
     threads: int
     steps: int
+    rounds: int
+    particle_steps_per_s: float
+    particle_steps_per_s_q1: float
+    particle_steps_per_s_q3: float
+    particle_steps_per_s_min: float
+    particle_steps_per_s_max: float
+    dt_mean: float
+    wall_s_per_sim_s: float
     step_ms: float
     cpu_ms_per_step: float
+    particle_steps_per_cpu_s: float
     rebuild_ms: float | None
     rebuild_method: str
-    rebuilds_per_step: float
-    particle_steps_per_s: float
-    particle_steps_per_cpu_s: float
+    rebuilds_per_step: float | None
     jit_compile_s: float
     setup_s: float
     first_step_s: float
     load_avg: float
+    load_avg_end: float
     l0: float
-    speedup_vs_reference: float | None = None
+    block_wall_s: list[float]
+    speedup_vs_first: float = 1.0
+    speedup_q1: float = 1.0
+    speedup_q3: float = 1.0
+    speedup_min: float = 1.0
+    speedup_max: float = 1.0
+    first_solver: str = ""
+    time_to_solution_speedup: float = 1.0
+    solver_version: str | None = None
+    solver_commit: str | None = None
+    code_module: str = ""  # the module whose code ran (its commit is looked up by the caller)
     extra: dict[str, Any] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
         extra = d.pop("extra")
         return {**{k: d[k] for k in RECORD_FIELDS}, **extra}
+
+
+@dataclass
+class Contender:
+    """Something the bench times: ``make()`` returns a fresh, not yet set up, stepper."""
+
+    label: str
+    make: Callable[[], Any]
+    code_module: str = ""
+
+
+def new_solver(spec: str | type) -> Solver:
+    """A fresh solver from a registry name (or spec): the one place the bench makes one."""
+    return make_solver(spec)
+
+
+def solver_contender(spec: str | type) -> Contender:
+    """A registered backend as a contender; raises (unknown name, missing extra) at once."""
+    cls = get_solver_class(spec)
+    label = spec if isinstance(spec, str) else str(getattr(cls, "name", cls.__name__))
+    return Contender(label, lambda: new_solver(spec), cls.__module__)
 
 
 def spacing_for(n: int) -> float:
@@ -106,13 +180,6 @@ def workload(n: int | None = None, l0: float | None = None) -> Problem:
     return problem
 
 
-def _threads_of(solver: Any) -> int:
-    threads = getattr(solver, "threads", None)
-    if isinstance(threads, int):
-        return threads
-    return 1
-
-
 def _load() -> float:
     try:
         return round(os.getloadavg()[0], 2)
@@ -120,83 +187,159 @@ def _load() -> float:
         return float("nan")
 
 
-def _cold_start(cls: type, problem_fn: Callable[[], Problem]) -> tuple[float, float, Solver]:
-    """(setup s, first step s, the solver) for a fresh instance."""
-    s: Solver = cls()
-    problem = problem_fn()
+def _builds(s: Any) -> float:
+    return float(getattr(s, "counters", {}).get("neighbour_builds", 0.0))
+
+
+@dataclass
+class _Live:
+    """A warm contender during the rounds, and what its blocks measured."""
+
+    contender: Contender
+    stepper: Any
+    setup_s: float
+    first_step_s: float
+    jit_s: float
+    walls: list[float] = field(default_factory=list)  # per block
+    cpus: list[float] = field(default_factory=list)
+    sims: list[float] = field(default_factory=list)  # simulated time per block
+    step_walls: list[float] = field(default_factory=list)  # per step, for the rebuild estimate
+    rebuilt: list[bool] = field(default_factory=list)
+    builds: float = 0.0
+
+    def block(self, steps: int) -> None:
+        s = self.stepper
+        builds0 = _builds(s)
+        sim = 0.0
+        c0 = time.process_time()
+        w0 = time.perf_counter()
+        for _ in range(steps):
+            b = _builds(s)
+            t = time.perf_counter()
+            dt = s.stable_dt()
+            s.step(dt)
+            self.step_walls.append(time.perf_counter() - t)
+            self.rebuilt.append(_builds(s) > b)
+            sim += dt
+        self.walls.append(time.perf_counter() - w0)
+        self.cpus.append(time.process_time() - c0)
+        self.sims.append(sim)
+        self.builds += _builds(s) - builds0
+
+
+def _start(contender: Contender, problem: Problem) -> tuple[float, float, Any]:
+    """(setup s, first step s, the stepper) for a fresh instance."""
+    s = contender.make()
     t0 = time.perf_counter()
     s.setup(problem)
     t1 = time.perf_counter()
     s.step(s.stable_dt())
-    t2 = time.perf_counter()
-    return t1 - t0, t2 - t1, s
+    return t1 - t0, time.perf_counter() - t1, s
 
 
-def measure(
-    solver: str | type,
-    n: int | None = None,
+def _quartiles(values: Sequence[float]) -> tuple[float, float, float, float, float]:
+    """(median, q1, q3, min, max)."""
+    a = np.asarray(values, dtype=float)
+    q1, med, q3 = np.percentile(a, [25.0, 50.0, 75.0])
+    return float(med), float(q1), float(q3), float(a.min()), float(a.max())
+
+
+def run_size(
+    contenders: Sequence[Contender],
+    l0: float,
     *,
-    l0: float | None = None,
-    steps: int = 20,
-    warmup: int = 3,
-) -> BenchRecord:
-    """Time one backend on the benchmark workload (see the module docstring)."""
+    steps: int = DEFAULT_STEPS,
+    budget: float = DEFAULT_BUDGET_S,
+    repeat: int | None = None,
+    warmup: int = WARMUP_STEPS,
+    progress: Callable[[str], None] | None = None,
+) -> list[BenchRecord]:
+    """Time every contender at spacing ``l0`` (see the module docstring)."""
     if not (isinstance(steps, int) and steps >= 1):
         raise ValueError(f"steps = {steps!r} is not allowed: an integer >= 1")
-    cls = get_solver_class(solver)
-    if l0 is None:
-        l0 = spacing_for(n) if n is not None else None
-    if l0 is None:
-        raise ValueError("measure: give n or l0")
-    spacing = l0
-
-    def problem_fn() -> Problem:
-        return workload(l0=spacing)
-
+    if repeat is not None and not (isinstance(repeat, int) and repeat >= 1):
+        raise ValueError(f"repeat = {repeat!r} is not allowed: an integer >= 1")
+    if not budget > 0:
+        raise ValueError(f"budget = {budget!r} is not allowed: a number of seconds > 0")
+    say = progress or (lambda text: None)
+    problem = workload(l0=l0)
+    n = problem.particles.n
+    n_fluid = int(np.count_nonzero(problem.particles.kind == Kind.FLUID))
     load = _load()
+    live: list[_Live] = []
     with np.errstate(all="raise", under="ignore"):
-        cold_setup, cold_step, _ = _cold_start(cls, problem_fn)
-        warm_setup, warm_step, s = _cold_start(cls, problem_fn)
-        jit = max(0.0, (cold_setup + cold_step) - (warm_setup + warm_step))
-        for _ in range(warmup):
-            s.step(s.stable_dt())
-        n_particles = s.state().n
-        counters = getattr(s, "counters", {})
-        builds0 = float(counters.get("neighbour_builds", 0.0))
-        walls: list[float] = []
-        rebuilt: list[bool] = []
-        c0 = time.process_time()
-        w0 = time.perf_counter()
-        for _ in range(steps):
-            b = float(counters.get("neighbour_builds", 0.0))
-            t = time.perf_counter()
-            s.step(s.stable_dt())
-            walls.append(time.perf_counter() - t)
-            rebuilt.append(float(counters.get("neighbour_builds", 0.0)) > b)
-        wall = time.perf_counter() - w0
-        cpu = time.process_time() - c0
-        builds = float(counters.get("neighbour_builds", 0.0)) - builds0
-        rebuild_ms, method = _rebuild_time(s, walls, rebuilt)
-    fluid = int(np.count_nonzero(s.state().kind == Kind.FLUID))
+        for c in contenders:
+            say(f"{c.label} at n = {n}: cold start")
+            cold_setup, cold_step, cold = _start(c, problem)
+            del cold
+            gc.collect()  # the cold instance is gone before anything is timed
+            warm_setup, warm_step, s = _start(c, problem)
+            for _ in range(warmup):
+                s.step(s.stable_dt())
+            jit = max(0.0, (cold_setup + cold_step) - (warm_setup + warm_step))
+            live.append(_Live(c, s, warm_setup, cold_step, jit))
+        say(f"n = {n}: rounds of {steps} steps, "
+            + (f"{repeat} rounds" if repeat else f"budget {budget:g} s"))
+        rounds = 0
+        spent = 0.0
+        while True:
+            for x in live:
+                x.block(steps)
+                spent += x.walls[-1]
+            rounds += 1
+            if repeat is not None:
+                if rounds >= repeat:
+                    break
+            elif spent >= budget and rounds >= MIN_ROUNDS:
+                break
+        records = [_record(x, n, n_fluid, steps, rounds, load, l0) for x in live]
+    _ratios(records, live)
+    return records
+
+
+def _record(x: _Live, n: int, n_fluid: int, steps: int, rounds: int, load: float,
+            l0: float) -> BenchRecord:
+    s = x.stepper
+    rates = [n * steps / w for w in x.walls]
+    med, q1, q3, lo, hi = _quartiles(rates)
+    rebuild_ms, method = _rebuild_time(s, x.step_walls, x.rebuilt)
+    counted = hasattr(s, "counters")
+    cpu = float(np.median(x.cpus))
+    version = getattr(s, "version", None)
     return BenchRecord(
-        solver=str(getattr(s, "name", cls.__name__)),
-        n=n_particles,
-        n_fluid=fluid,
-        threads=_threads_of(s),
-        steps=steps,
-        step_ms=1e3 * wall / steps,
+        solver=x.contender.label, n=n, n_fluid=n_fluid, threads=_threads_of(s), steps=steps,
+        rounds=rounds, particle_steps_per_s=med, particle_steps_per_s_q1=q1,
+        particle_steps_per_s_q3=q3, particle_steps_per_s_min=lo, particle_steps_per_s_max=hi,
+        dt_mean=float(sum(x.sims) / (steps * rounds)),
+        wall_s_per_sim_s=float(np.median([w / s_ for w, s_ in zip(x.walls, x.sims, strict=True)])),
+        step_ms=1e3 * float(np.median(x.walls)) / steps,
         cpu_ms_per_step=1e3 * cpu / steps,
-        rebuild_ms=rebuild_ms,
-        rebuild_method=method,
-        rebuilds_per_step=builds / steps,
-        particle_steps_per_s=n_particles * steps / wall,
-        particle_steps_per_cpu_s=n_particles * steps / cpu if cpu > 0 else float("nan"),
-        jit_compile_s=jit,
-        setup_s=warm_setup,
-        first_step_s=cold_step,
-        load_avg=load,
-        l0=spacing,
+        particle_steps_per_cpu_s=n * steps / cpu if cpu > 0 else float("nan"),
+        rebuild_ms=rebuild_ms, rebuild_method=method,
+        rebuilds_per_step=x.builds / (steps * rounds) if counted else None,
+        jit_compile_s=x.jit_s, setup_s=x.setup_s, first_step_s=x.first_step_s,
+        load_avg=load, load_avg_end=_load(), l0=l0, block_wall_s=list(x.walls),
+        solver_version=None if version is None else str(version),
+        code_module=x.contender.code_module,
     )
+
+
+def _ratios(records: list[BenchRecord], live: list[_Live]) -> None:
+    """Per-round ratios to the first contender: its blocks ran right before the others'."""
+    base = live[0]
+    for rec, x in zip(records, live, strict=True):
+        speed = [b / w for w, b in zip(x.walls, base.walls, strict=True)]  # same steps, same n
+        rec.speedup_vs_first, rec.speedup_q1, rec.speedup_q3, rec.speedup_min, rec.speedup_max = (
+            _quartiles(speed))
+        sooner = [(bw / bs) / (w / s) for w, s, bw, bs
+                  in zip(x.walls, x.sims, base.walls, base.sims, strict=True)]
+        rec.time_to_solution_speedup = float(np.median(sooner))
+        rec.first_solver = base.contender.label
+
+
+def _threads_of(solver: Any) -> int:
+    threads = getattr(solver, "threads", None)
+    return threads if isinstance(threads, int) else 1
 
 
 def _rebuild_time(
@@ -218,63 +361,58 @@ def _rebuild_time(
 
 
 def run_bench(
-    solvers: Sequence[str],
+    contenders: Sequence[Contender | str],
     sizes: Sequence[int],
     *,
-    steps: int = 20,
-    reference: str = "reference",
+    steps: int = DEFAULT_STEPS,
+    budget: float = DEFAULT_BUDGET_S,
+    repeat: int | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> list[BenchRecord]:
-    """Measure every solver at every size; the reference backend is always measured too.
-
-    ``speedup_vs_reference`` = particle-steps/s of the backend over the reference's at the same
-    size in this run.
-    """
-    names = list(dict.fromkeys([reference, *solvers]))
-    for name in names:
-        get_solver_class(name)  # fail early on an unknown or unavailable backend
-    records = []
+    """Every contender at every size; ratios are to the first contender (a name is a solver)."""
+    entries = [c if isinstance(c, Contender) else solver_contender(c) for c in contenders]
+    if not entries:
+        raise ValueError("run_bench: no contender")
+    records: list[BenchRecord] = []
     for n in sizes:
-        l0 = spacing_for(n)
-        base: BenchRecord | None = None
-        for name in names:
-            if progress is not None:
-                progress(f"{name} at n ~ {n} ...")
-            rec = measure(name, l0=l0, steps=steps)
-            if name == reference:
-                base = rec
-            records.append(rec)
-        for rec in records[-len(names):]:
-            if base is not None and base.particle_steps_per_s > 0:
-                rec.speedup_vs_reference = rec.particle_steps_per_s / base.particle_steps_per_s
+        records += run_size(entries, spacing_for(n), steps=steps, budget=budget, repeat=repeat,
+                            progress=progress)
     return records
 
 
 def format_table(records: Sequence[BenchRecord]) -> str:
-    """A plain-text table of the records (one line per backend and size)."""
+    """A plain-text table: one line per contender and size."""
     head = (
-        f"{'solver':<10} {'n':>7} {'thr':>3} {'step ms':>8} {'CPU ms':>8} {'rebuild ms':>10} "
-        f"{'Mpart-steps/s':>13} {'per CPU-s':>9} {'speed-up':>8} {'JIT s':>6} {'load':>5}"
+        f"{'solver':<16} {'n':>7} {'thr':>3} {'rounds':>6} {'Mpart-steps/s [q1-q3]':>23} "
+        f"{'speed-up [min-max]':>19} {'to t':>6} {'per CPU-s':>9} {'step ms':>8} "
+        f"{'rebuild ms':>10} {'JIT s':>6} {'load':>9}"
     )
     lines = [head, "-" * len(head)]
     for r in records:
+        rate = (f"{r.particle_steps_per_s / 1e6:.3f} [{r.particle_steps_per_s_q1 / 1e6:.3f}-"
+                f"{r.particle_steps_per_s_q3 / 1e6:.3f}]")
+        speed = f"{r.speedup_vs_first:.2f}x [{r.speedup_min:.2f}-{r.speedup_max:.2f}]"
         rebuild = "-" if r.rebuild_ms is None else f"{r.rebuild_ms:.1f}"
-        speed = "-" if r.speedup_vs_reference is None else f"{r.speedup_vs_reference:.1f}x"
         lines.append(
-            f"{r.solver:<10} {r.n:>7} {r.threads:>3} {r.step_ms:>8.2f} {r.cpu_ms_per_step:>8.2f} "
-            f"{rebuild:>10} {r.particle_steps_per_s / 1e6:>13.3f} "
-            f"{r.particle_steps_per_cpu_s / 1e6:>9.3f} {speed:>8} {r.jit_compile_s:>6.2f} "
-            f"{r.load_avg:>5.2f}"
+            f"{r.solver:<16} {r.n:>7} {r.threads:>3} {r.rounds:>6} {rate:>23} {speed:>19} "
+            f"{r.time_to_solution_speedup:>5.2f}x {r.particle_steps_per_cpu_s / 1e6:>9.3f} "
+            f"{r.step_ms:>8.2f} {rebuild:>10} {r.jit_compile_s:>6.2f} "
+            f"{r.load_avg:>4.1f}-{r.load_avg_end:<4.1f}"
         )
     return "\n".join(lines)
 
 
 __all__ = [
+    "DEFAULT_SIZES",
+    "SIZES",
     "BenchRecord",
+    "Contender",
     "RECORD_FIELDS",
     "format_table",
-    "measure",
+    "new_solver",
     "run_bench",
+    "run_size",
+    "solver_contender",
     "spacing_for",
     "workload",
 ]

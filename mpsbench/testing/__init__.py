@@ -170,6 +170,47 @@ class _PytestCheck:
         return self.name
 
 
+@dataclass(frozen=True)
+class PlannedCheck:
+    """One (solver, check) test of the kit, before it runs: what ``parametrize_solver_checks``
+    and the pytest plugin (:mod:`mpsbench.testing.pytest_plugin`) each turn into a test.
+
+    ``check`` is None when the solver cannot be loaded (``unavailable`` says why); ``skip`` is
+    the reason a check does not apply; ``xfail`` the reason the solver expects it to fail.
+    """
+
+    solver: SolverSpec
+    id: str
+    check: Check | None
+    skip: str | None = None
+    xfail: str | None = None
+    unavailable: str | None = None
+
+
+def plan_solver_checks(
+    solvers: Iterable[SolverSpec], checks: Sequence[str] | str | None = None
+) -> list[PlannedCheck]:
+    """Every (solver, check) test, ids ``<solver>-<check>``; ``<solver>-unavailable`` for a solver
+    that cannot be loaded (a missing optional dependency).  An unknown name raises the
+    registry's error."""
+    from mpsbench.registry import PluginLoadError
+
+    planned = []
+    for spec in solvers:
+        label = solver_label(spec)
+        try:
+            caps = capabilities_of(spec)
+            xfails = expected_failures(spec)
+        except PluginLoadError as exc:
+            planned.append(PlannedCheck(spec, f"{label}-unavailable", None, unavailable=str(exc)))
+            continue
+        for check in select_checks(checks):
+            skip = check.skip_reason(caps)
+            xfail = None if skip else xfails.get(check.name)
+            planned.append(PlannedCheck(spec, f"{label}-{check.name}", check, skip, xfail))
+    return planned
+
+
 def parametrize_solver_checks(
     *solvers: SolverSpec, checks: Sequence[str] | str | None = None
 ) -> Any:
@@ -181,45 +222,33 @@ def parametrize_solver_checks(
     """
     import pytest
 
-    from mpsbench.registry import PluginLoadError
-
     if not solvers:
         raise ValueError("parametrize_solver_checks: give at least one solver")
     params = []
-    for spec in solvers:
-        label = solver_label(spec)
-        try:
-            caps = capabilities_of(spec)
-            xfails = expected_failures(spec)
-        except PluginLoadError as exc:
-            params.append(
-                pytest.param(
-                    spec, None, id=f"{label}-unavailable", marks=pytest.mark.skip(reason=str(exc))
-                )
-            )
-            continue
-        for check in select_checks(checks):
-            marks = []
-            skip = check.skip_reason(caps)
-            if skip:
-                marks.append(pytest.mark.skip(reason=skip))
-            elif check.name in xfails:
-                marks.append(pytest.mark.xfail(reason=xfails[check.name], strict=False))
-            params.append(
-                pytest.param(spec, _PytestCheck(check), id=f"{label}-{check.name}", marks=marks)
-            )
+    for planned in plan_solver_checks(solvers, checks):
+        marks = []
+        if planned.check is None:
+            marks.append(pytest.mark.skip(reason=str(planned.unavailable)))
+        elif planned.skip:
+            marks.append(pytest.mark.skip(reason=planned.skip))
+        elif planned.xfail is not None:
+            marks.append(pytest.mark.xfail(reason=planned.xfail, strict=False))
+        check = _PytestCheck(planned.check) if planned.check is not None else None
+        params.append(pytest.param(planned.solver, check, id=planned.id, marks=marks))
     return pytest.mark.parametrize("solver, check", params)
 
 
 __all__ = [
     "Check",
     "ConformanceResult",
+    "PlannedCheck",
     "SkipCheck",
     "SolverCheckError",
     "all_checks",
     "check_solver",
     "fresh_solver",
     "parametrize_solver_checks",
+    "plan_solver_checks",
     "run_check",
     "select_checks",
 ]

@@ -1,12 +1,15 @@
 """Both backends on the benchmark dam break: one WC-MPS step and one neighbour rebuild (issue 8).
 
-Run with ``pytest tests/benchmarks --benchmark-only`` (the default test run skips benchmarks).
-The workload is :func:`mpsbench.run.bench.workload` (the dam break of test_bench_reference.py, l0
-chosen for about 10k, 40k and 160k particles, sheared start so the neighbour list is rebuilt
-every several steps).  A step round is ``STEPS`` consecutive ``step(stable_dt())`` calls, so the
-rebuilds are amortised at their natural rate; a rebuild round is one forced rebuild of the
-skinned neighbour list (reference: cKDTree pair list + static-pair filter; numba: cell-list CSR
-+ the sub-list at r_e).
+Run with ``pytest tests/benchmarks --benchmark-only`` (the default test run skips benchmarks);
+the README gives the command that stores the results with machine and commit info.  The
+workload, the sizes and the steps per round are those of ``mpsbench bench``
+(:mod:`mpsbench.run.bench`: ``workload``, ``SIZES``, ``DEFAULT_STEPS``): the dam break with l0
+chosen for about 10k, 40k and 160k particles and the sheared start, so the neighbour list is
+rebuilt every several steps.  A step round is ``STEPS`` consecutive ``step(stable_dt())``
+calls, so the rebuilds are amortised at their natural rate; a rebuild round is one forced
+rebuild of the skinned neighbour list (reference: cKDTree pair list + static-pair filter;
+numba: cell-list CSR + the sub-list at r_e).  Unlike ``mpsbench bench`` the backends are not
+interleaved: pytest-benchmark runs one test after the other.
 
 ``benchmark.extra_info``: ``particle_steps_per_s`` (wall, mean round), ``particle_steps_per_cpu_s``
 (process CPU time, all threads: steadier on a loaded machine), ``threads``, ``n_particles``,
@@ -22,18 +25,16 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mpsbench.run.bench import spacing_for, workload
-from mpsbench.run.protocol import make_solver
+from mpsbench.run.bench import DEFAULT_STEPS, SIZES, new_solver, spacing_for, workload
 
-STEPS = 20
-SIZES = {"10k": 10_000, "40k": 40_000, "160k": 160_000}
+STEPS = DEFAULT_STEPS
 SOLVERS = ("reference", "numba")
 
 
 def _solver(name: str, n: int) -> Any:
     if name == "numba":
         pytest.importorskip("numba")
-    solver = make_solver(name)
+    solver = new_solver(name)
     solver.setup(workload(l0=spacing_for(n)))
     for _ in range(3):  # compile / warm up; leave the start-up step out
         solver.step(solver.stable_dt())
