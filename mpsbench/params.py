@@ -62,16 +62,28 @@ class Param:
                     value = int(text)
                 else:
                     value = text.strip()
-            except ValueError:
+            except (ValueError, ZeroDivisionError, OverflowError):  # "1/0", "1e999/1e-999"
                 raise ConfigError(
-                    f"{self.role} {self.name} = {text!r} is not allowed: {self.allowed()}"
+                    f"{self.role} {self.name} = {_show(text)} is not allowed: "
+                    f"{self.allowed()}"
+                ) from None
+            try:
+                return self.check(value)
+            except ConfigError:  # name the text as given ("1e999", not inf)
+                raise ConfigError(
+                    f"{self.role} {self.name} = {_show(text)} is not allowed: "
+                    f"{self.allowed()}"
                 ) from None
         return self.check(value)
 
     def check(self, value: Any) -> Any:
-        bad = ConfigError(f"{self.role} {self.name} = {value!r} is not allowed: {self.allowed()}")
+        bad = ConfigError(f"{self.role} {self.name} = {_show(value)} is not allowed: "
+                          f"{self.allowed()}")
         if self.kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
+            try:
+                value = float(value)
+            except OverflowError:  # an integer beyond the float range
+                raise bad from None
         if self.kind is float and not (isinstance(value, float) and math.isfinite(value)):
             raise bad
         if self.kind is int and (not isinstance(value, int) or isinstance(value, bool)):
@@ -88,6 +100,16 @@ class Param:
         if self.maximum is not None and value > self.maximum:
             raise bad
         return value
+
+
+def _show(value: Any) -> str:
+    """``repr(value)`` for a message, cut at 200 characters (an integer too long to print, from a
+    study file, is described instead: repr raises for more than 4300 digits)."""
+    try:
+        text = repr(value)
+    except ValueError:
+        return f"<an integer of {value.bit_length()} bits>"
+    return text if len(text) <= 200 else text[:197] + "..."
 
 
 def _parse_float(text: str) -> float:

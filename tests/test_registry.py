@@ -114,9 +114,14 @@ def test_register_rules() -> None:
         reg.register("a", 2)
     reg.register("a", 3, replace=True)
     assert reg.get("a") == 3
-    for bad in ("", None, 5):
-        with pytest.raises(ValueError, match="non-empty string"):
+    # names become folder names of a report: nothing that climbs out of a folder or hides
+    for bad in ("", None, 5, "a/b", "../x", "..", ".hidden", "a\\b", "x\x00y", "a..b", "a b",
+                "x" * 101):
+        with pytest.raises(ValueError, match="gizmo name .* is not allowed"):
             reg.register(bad, 1)  # type: ignore[arg-type]
+    for good in ("wf1", "xu-jin-analytic", "my_model.v2", "a+b", "9lives"):
+        reg.register(good, 1)
+        reg.unregister(good)
     reg.unregister("a")
     reg.unregister("never-there")  # no error
     assert reg.names() == []

@@ -57,7 +57,7 @@ def test_specs_are_parsed_validated_and_canonical(tunable: type) -> None:
     with pytest.raises(ConfigError, match=r"solver 'tunable' has no option 'gpu'; its options: "
                        r"device, fast"):
         solver_spec("tunable:gpu=1")
-    with pytest.raises(ConfigError, match=r"solver 'tunable': option device = -1 is not "
+    with pytest.raises(ConfigError, match=r"solver 'tunable': option device = '-1' is not "
                        r"allowed: an int >= 0"):
         solver_spec("tunable:device=-1")
     with pytest.raises(ConfigError, match="is not KEY=VALUE"):

@@ -23,6 +23,7 @@ import numpy as np
 from mpsbench.errors import ConfigError
 from mpsbench.params import Param
 from mpsbench.registry import Registry
+from mpsbench.run.estimate import RunEstimate
 from mpsbench.run.runner import RunResult
 
 TIERS = ("smoke", "quick", "paper")
@@ -111,6 +112,13 @@ class Case:
     # ---- to implement
     def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
         raise NotImplementedError
+
+    def estimate(self, params: dict[str, Any]) -> RunEstimate | None:
+        """What one run will cost (particles, pairs, steps, a fixed dt's stability limit),
+        from the parameters alone, in well under a millisecond: nothing may be built here.
+        None (the default) means unknown; the size guard then only counts runs
+        (:mod:`mpsbench.run.estimate`, :mod:`mpsbench.results.guard`)."""
+        return None
 
     def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
         return []

@@ -87,12 +87,25 @@ def _default_solvers() -> list[str]:
     return sorted(out, key=lambda name: name != "reference")  # ratios to the reference
 
 
+def _check_memory(n: int) -> None:
+    """Refuse a size that cannot fit in this machine's memory (it would die of MemoryError
+    after minutes of set-up); the workload's largest radius is r_e = 3.1 l0."""
+    from mpsbench.results.guard import machine_memory
+    from mpsbench.run.estimate import memory_bytes, pairs_for
+
+    need, have = memory_bytes(n, pairs_for(n, 3.1)), machine_memory()
+    if have is not None and need > have:
+        raise UsageError(f"--n {n}: about {need / 2**30:.1f} GB for {n:,} particles, more than "
+                         f"this machine's {have / 2**30:.1f} GB")
+
+
 def _check(args: argparse.Namespace) -> None:
     from mpsbench.testing.bench import MIN_N
 
     for n in args.n or []:
         if n < MIN_N:
             raise UsageError(f"--n {n} is not allowed: an integer >= {MIN_N}")
+        _check_memory(n)
     if args.steps < 1:
         raise UsageError(f"--steps {args.steps} is not allowed: an integer >= 1")
     if not args.budget > 0:

@@ -8,7 +8,6 @@ a case fails when one of its solvers fails, or it could not be loaded, planned o
 
 from __future__ import annotations
 
-import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,7 +15,9 @@ from typing import Any
 import pandas as pd
 
 from mpsbench.cases import Case
+from mpsbench.errors import where
 from mpsbench.results.case_report import Rendered, render_case_outputs
+from mpsbench.results.paths import component, inside
 from mpsbench.results.records import solver_folder, solver_label
 
 
@@ -79,8 +80,8 @@ def render_case(case: Case, records: list[dict[str, Any]], folder: Path) -> Case
     section.by_solver = solver_table(case, view)
     for solver in solvers:
         recs = [r for r in view if r.get("solver") == solver]
-        out = render_case_outputs(case, recs, folder / "by-solver" / solver_folder(solver),
-                                  arrays_dir=folder)
+        sub = inside(folder, folder / "by-solver" / component("solver", solver_folder(solver)))
+        out = render_case_outputs(case, recs, sub, arrays_dir=folder)
         section.solvers.append(SolverSection(solver, _version(recs), out))
     return section
 
@@ -117,6 +118,11 @@ def case_from_disk(name: str, records: list[dict[str, Any]], folder: Path, why: 
             section.solvers.append(SolverSection(s, _version(recs), rendered))
     if not records:
         section.error = "no records"
+    undecided = [s.rendered.folder for s in section.solvers
+                 if not (s.rendered.folder / "checks.json").is_file()]
+    if records and undecided:  # no stored checks: nothing can decide pass or fail
+        section.error = (f"no checks.json in {undecided[0]}: the case's checks can neither "
+                         "be run nor read, so nothing decides pass or fail")
     return section
 
 
@@ -125,10 +131,8 @@ def safe_render_case(case: Case, records: list[dict[str, Any]], folder: Path) ->
     try:
         return render_case(case, records, folder)
     except Exception as exc:  # noqa: BLE001 - reported in the section, the other cases go on
-        tb = traceback.extract_tb(exc.__traceback__)
-        where = f" (at {tb[-1].filename}:{tb[-1].lineno})" if tb else ""
         return CaseSection(case.name, case.title, case.description.strip(), folder, records,
-                           error=f"rendering failed: {type(exc).__name__}: {exc}{where}")
+                           error=f"rendering failed: {type(exc).__name__}: {exc}{where(exc)}")
 
 
 def verdict(ok: bool) -> str:

@@ -1,4 +1,7 @@
-"""``summary.md``: the Markdown summary of a results folder (overview, then each case)."""
+"""``summary.md``: the Markdown summary of a results folder (overview, then each case).
+
+Text that comes from records, manifests and plugins is escaped (:mod:`.escape`).
+"""
 
 from __future__ import annotations
 
@@ -8,6 +11,7 @@ from typing import Any
 import pandas as pd
 
 from mpsbench.results.case_report import Rendered, check_lines, markdown_table
+from mpsbench.results.escape import md_escape, md_frame
 from mpsbench.results.sections import CaseSection, header_lines, overview_rows, verdict
 
 
@@ -15,20 +19,21 @@ def render_summary(sections: list[CaseSection], manifest: dict[str, Any], out: P
     ok = all(s.passed for s in sections)
     n_pass = sum(1 for s in sections if s.passed)
     lines = [f"# mpsbench validation: {verdict(ok)} ({n_pass}/{len(sections)} cases pass)", ""]
-    lines += header_lines(manifest) + [""]
+    lines += [md_escape(line) for line in header_lines(manifest)] + [""]
     overview = pd.DataFrame(overview_rows(sections))
     lines += ["## Overview", "", _md(overview), ""]
     for sec in sections:
-        lines += [f"## {sec.title or sec.name} (`{sec.name}`): {verdict(sec.passed)}", ""]
+        lines += [f"## {md_escape(sec.title or sec.name)} (`{sec.name}`): {verdict(sec.passed)}",
+                  ""]
         if sec.error:
-            lines += [f"**Error:** {sec.error}", ""]
+            lines += [f"**Error:** {md_escape(sec.error)}", ""]
         several = len(sec.solvers) > 1
         for s in sec.solvers:
             r = s.rendered
             if several:
-                lines += [f"### solver {s.solver} {s.version}: {verdict(r.passed)}", ""]
+                lines += [f"### solver {s.solver} {md_escape(s.version)}: {verdict(r.passed)}", ""]
             else:
-                lines += [f"Solver {' '.join(filter(None, (s.solver, s.version)))}: "
+                lines += [f"Solver {md_escape(' '.join(filter(None, (s.solver, s.version))))}: "
                           f"{len(r.records)} runs, {r.completed} completed.", ""]
             lines += _rendered_lines(r, out)
         if sec.by_solver is not None and not sec.by_solver.empty:
@@ -42,11 +47,11 @@ def render_summary(sections: list[CaseSection], manifest: dict[str, Any], out: P
 def _rendered_lines(r: Rendered, out: Path) -> list[str]:
     lines: list[str] = []
     if r.failures:
-        lines += ["Fails: " + "; ".join(r.failures) + ".", ""]
+        lines += [md_escape("Fails: " + "; ".join(r.failures) + "."), ""]
     if r.findings.strip():
-        lines += [r.findings.strip(), ""]
+        lines += [md_escape(r.findings.strip()), ""]
     if r.checks:
-        lines += ["Checks:", ""] + check_lines(r.checks) + [""]
+        lines += ["Checks:", ""] + [md_escape(line) for line in check_lines(r.checks)] + [""]
     head = r.headline_table()
     if head is not None:
         lines += [f"Table **{head[0]}**:", "", markdown_table(head[1])]
@@ -54,7 +59,7 @@ def _rendered_lines(r: Rendered, out: Path) -> list[str]:
 
 
 def _md(df: pd.DataFrame) -> str:
-    return markdown_table(df) if df.empty else str(df.to_markdown(index=False)) + "\n"
+    return markdown_table(df) if df.empty else str(md_frame(df).to_markdown(index=False)) + "\n"
 
 
 def _rel(path: Path, base: Path) -> str:

@@ -12,13 +12,13 @@ from __future__ import annotations
 
 import math
 import time as _time
-import traceback
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from mpsbench.errors import where
 from mpsbench.physics.config import FlowPhysics
 from mpsbench.physics.particles import Particles
 from mpsbench.run.probes import Probe
@@ -139,9 +139,8 @@ def run(
         status, reason = Status.DIVERGED, f"{type(exc).__name__}: {exc}" if isinstance(
             exc, FloatingPointError) else str(exc)
     except Exception as exc:  # noqa: BLE001 - a solver bug is a failed run, not a crash
-        tb = traceback.extract_tb(exc.__traceback__)[-1]
         status = Status.FAILED
-        reason = f"{type(exc).__name__}: {exc} (at {tb.filename}:{tb.lineno})"
+        reason = f"{type(exc).__name__}: {exc}{where(exc)}"
     finally:
         np.seterr(**old_err)
     wall = _time.perf_counter() - t_loop

@@ -38,6 +38,7 @@ from mpsbench.cases import Case, CaseCheck, CaseRun
 from mpsbench.physics.config import FlowPhysics, Models
 from mpsbench.physics.operators import lattice_constants
 from mpsbench.physics.particles import Kind
+from mpsbench.run.estimate import RunEstimate, flow_dt, pairs_for, steps_for
 from mpsbench.run.probes import Callback, PointPressure
 from mpsbench.run.runner import run
 
@@ -160,6 +161,18 @@ class WaterJetCase(Case):
     }
 
     # ------------------------------------------------------------------ one run
+    def estimate(self, params: dict[str, Any]) -> RunEstimate:
+        """Plate rows, inflow rows, the initial jet column and, at steady state, a film of
+        half the jet width along the whole plate; steps at the acoustic limit with |u| = U."""
+        b, speed, l0 = params["b"], params["U"], params["l0"]
+        plate = params["plate_length"] * b
+        fluid = (params["nozzle_gap"] * b * b + 0.5 * b * plate) / l0**2
+        walls = (plate / l0 + 1) * 4 + 4 * b / l0
+        particles = int(fluid + walls)
+        dt = flow_dt(l0, params["c0_ratio"] * speed, speed, params["cfl"])
+        steps = steps_for(params["t_end"] * b / speed, dt)
+        return RunEstimate(particles, pairs_for(particles, params["re_ratio"]), steps)
+
     def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
         b, speed, l0 = params["b"], params["U"], params["l0"]
         if params["t_window"] >= params["t_end"]:
