@@ -9,10 +9,13 @@ instead of breaking the others.
 from __future__ import annotations
 
 import importlib
+import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from typing import Any, Generic, TypeVar
+
+from mpsbench.errors import MpsbenchError
 
 T = TypeVar("T")
 
@@ -20,15 +23,44 @@ OWN_DISTRIBUTION = "mpsbench"
 """Entry points of this distribution are the built-ins (declared in its pyproject.toml)."""
 
 
-class UnknownNameError(KeyError, ValueError):
+NAME_CHARS = "letters, digits, '.', '_', '+', '-'; starting with a letter or digit; at most 100"
+"""What a registered name may contain (:func:`check_name`): names of cases and solvers become
+folder and file names of a results folder, so none may climb out of it or hide in it."""
+
+_NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9._+-]{0,99}")
+
+
+class UnknownNameError(MpsbenchError, KeyError, ValueError):
     """Raised for a name no registry entry carries; the message lists the known names."""
 
     def __str__(self) -> str:  # KeyError would quote the message
         return str(self.args[0]) if self.args else ""
 
 
-class PluginLoadError(RuntimeError):
+class PluginLoadError(MpsbenchError, RuntimeError):
     """An entry could not be imported or did not have the expected shape."""
+
+
+class BadNameError(MpsbenchError, ValueError):
+    """A name that may not be registered (or read back from a record): see :data:`NAME_CHARS`."""
+
+
+def name_problem(name: object) -> str | None:
+    """Why ``name`` is not a valid case/solver/model name (None when it is)."""
+    if not isinstance(name, str):
+        return f"a string, got {type(name).__name__}"
+    if not _NAME_RE.fullmatch(name) or ".." in name:
+        return NAME_CHARS + " characters, no '..'"
+    return None
+
+
+def check_name(kind: str, name: object) -> str:
+    """``name`` if it may name a ``kind`` (it is used as a path component); else BadNameError."""
+    problem = name_problem(name)
+    if problem is not None:
+        raise BadNameError(f"{kind} name {name!r} is not allowed: {problem}")
+    assert isinstance(name, str)
+    return name
 
 
 @dataclass
@@ -85,8 +117,7 @@ class Registry(Generic[T]):
         origin: str = "builtin",
         replace: bool = False,
     ) -> None:
-        if not name or not isinstance(name, str):
-            raise ValueError(f"{self.kind} name must be a non-empty string, got {name!r}")
+        check_name(self.kind, name)
         if name in self._entries and not replace:
             raise ValueError(f"{self.kind} {name!r} is already registered")
         self._entries[name] = Entry(name, target, description, source, origin)
@@ -104,6 +135,11 @@ class Registry(Generic[T]):
         # mpsbench's own entry points (its built-ins) first: they win a name over plugins
         for _, dist, ep in sorted(found, key=lambda f: f[0]):
             origin = "builtin" if dist == OWN_DISTRIBUTION else f"entry-point:{dist}"
+            problem = name_problem(ep.name)
+            if problem is not None:  # e.g. a '/' in it: it would name folders of a report
+                self.ignored.append(Entry(ep.name, ep.value, origin=origin,
+                                          error=f"ignored: the name is not allowed: {problem}"))
+                continue
             if ep.name in self._entries:
                 # built-ins (and the first plugin of a name) win; the loser is reported
                 taken = self._entries[ep.name].origin

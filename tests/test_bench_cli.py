@@ -21,8 +21,8 @@ from mpsbench.cli import main
 from mpsbench.commands import bench as command
 from mpsbench.results import bench_history
 from mpsbench.results.records import ENV_COLUMNS
-from mpsbench.run import bench
-from mpsbench.run.bench import RECORD_FIELDS, Contender, run_size, spacing_for, workload
+from mpsbench.testing import bench
+from mpsbench.testing.bench import RECORD_FIELDS, Contender, run_size, spacing_for, workload
 
 pytest.importorskip("numba")
 

@@ -201,7 +201,8 @@ def test_summary_opens_with_the_claims_table(toys: object, tmp_path: Path,
     assert summary.index("## Claims") < summary.index("## Gates") < summary.index("## Toy")
     claims = summary[summary.index("## Claims"):summary.index("## Gates")]
     assert "| T1 xu-jin is at least as accurate" in claims and "supported" in claims
-    assert "xu-jin's l2_error <=" in claims and "(2 runs)" in claims  # rule, evidence
+    # rule (HTML characters as entities, as everywhere in summary.md) and evidence
+    assert "xu-jin's l2_error &lt;= 1e+09 x" in claims and "(2 runs)" in claims
     page = (out / "index.html").read_text()
     assert page.index('id="claims"') < page.index('id="gates"')
     assert '<span class="pass">supported</span>' in page

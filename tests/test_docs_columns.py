@@ -37,7 +37,7 @@ def test_every_common_and_environment_column_is_documented() -> None:
 
 
 def test_every_bench_record_field_is_documented() -> None:
-    from mpsbench.run.bench import RECORD_FIELDS
+    from mpsbench.testing.bench import RECORD_FIELDS
 
     section = _section(DOC.read_text(), "mpsbench bench")
     missing = [n for n in RECORD_FIELDS if f"`{n}`" not in section]

@@ -109,14 +109,17 @@ def test_new_weight_is_one_class_and_one_registration() -> None:
     class Quadratic(WeightFunction):
         name = "test-quadratic"
 
-        def _w(self, r, re):  # type: ignore[no-untyped-def]
+        @staticmethod
+        def w_inside(r, re):  # type: ignore[no-untyped-def]
             return (1 - r / re) ** 2
 
-        def _dw(self, r, re):  # type: ignore[no-untyped-def]
+        @staticmethod
+        def dw_inside(r, re):  # type: ignore[no-untyped-def]
             return -2 / re * (1 - r / re)
 
-        def _d2w(self, r, re):  # type: ignore[no-untyped-def]
-            return np.full_like(r, 2 / re**2)
+        @staticmethod
+        def d2w_inside(r, re):  # type: ignore[no-untyped-def]
+            return 2 / re**2
 
     WEIGHTS.register("test-quadratic", Quadratic(), origin="user")
     try:

@@ -1,23 +1,41 @@
-"""The numba compute layer against the numpy reference operators (mpsbench.physics.operators).
+"""The numba compute layer against the numpy reference operators (mpsbench.physics).
 
-Jittered clouds in free, x-periodic and periodic boxes; both weights; several radii.  One CSR
-list built at the largest radius plus a skin serves every radius, as in a solver.  Agreement is
-held to 1e-10 relative (to the largest value of each result); pair lists must be identical.
+Jittered clouds in free, x-periodic and periodic boxes; both weights; several radii; every
+registered Laplacian and pressure gradient, each kernel built by its factory from the model's own
+formulas.  One CSR list built at the largest radius plus a skin serves every radius, as in a
+solver.  Agreement is held to 1e-10 relative (to the largest value of each result); pair lists
+must be identical.
 """
 
 from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from mpsbench.physics import operators as ops
+from mpsbench.physics.gradients import GRADIENTS, get_gradient
+from mpsbench.physics.laplacians import LAPLACIANS, get_laplacian
 from mpsbench.physics.neighbours import PairList, build_pairs
 from mpsbench.physics.particles import Box, Kind
 from mpsbench.physics.weights import get_weight
 
 numba = pytest.importorskip("numba")
 _backend = pytest.importorskip("mpsbench.solvers.numba_backend")
-cells, kernels = _backend.cells, _backend.kernels
+cells, kernels, formulas, pairs = (_backend.cells, _backend.kernels, _backend.formulas,
+                                   _backend.pairs)
+geometry, neighbour_list = _backend.geometry, _backend.neighbour_list
+ALL_ROWS = np.zeros(0, dtype=np.bool_)
+NO_ROWS = np.empty(0)
+
+
+def compiled_weight(name: str):
+    return formulas.weight(get_weight(name))
 
 RTOL = 1e-10
 L0 = 0.1
@@ -61,7 +79,7 @@ def case(request):
 
 
 def args(csr, pos, box):
-    return csr.offsets, csr.nbr, pos, cells.box_period(box)
+    return csr.offsets, csr.nbr, pos, geometry.box_period(box)
 
 
 # --------------------------------------------------------------------------- pair lists
@@ -73,7 +91,7 @@ def args(csr, pos, box):
 def test_pair_list_equals_build_pairs(name, cutoff, reach):
     pos, box, _ = cloud(BOXES[name], seed=3)
     ref = build_pairs(pos, cutoff, box)
-    got = cells.csr_to_pairs(cells.build_csr(pos, cutoff, box, reach=reach), pos)
+    got = neighbour_list.csr_to_pairs(cells.build_csr(pos, cutoff, box, reach=reach), pos)
     assert len(got) == len(ref) > 0
     for attr in ("i", "j", "dx", "r"):
         np.testing.assert_array_equal(getattr(got, attr), getattr(ref, attr), err_msg=attr)
@@ -85,7 +103,7 @@ def test_pair_list_with_unwrapped_positions():
     rng = np.random.default_rng(5)
     shifted += rng.integers(-2, 3, size=pos.shape) * SIDE * L0  # images up to two periods away
     ref = build_pairs(shifted, 0.31, box)
-    got = cells.build_pairs_cells(shifted, 0.31, box)
+    got = neighbour_list.build_pairs_cells(shifted, 0.31, box)
     for attr in ("i", "j", "dx", "r"):
         np.testing.assert_array_equal(getattr(got, attr), getattr(ref, attr), err_msg=attr)
 
@@ -104,14 +122,15 @@ def test_csr_rows_hold_both_directions(case):
 
 
 def test_small_and_degenerate_inputs():
-    assert len(cells.build_pairs_cells(np.zeros((0, 2)), 1.0)) == 0
-    assert len(cells.build_pairs_cells(np.zeros((1, 2)), 1.0)) == 0
+    assert len(neighbour_list.build_pairs_cells(np.zeros((0, 2)), 1.0)) == 0
+    assert len(neighbour_list.build_pairs_cells(np.zeros((1, 2)), 1.0)) == 0
     csr = cells.build_csr(np.zeros((0, 2)), 1.0)
     assert csr.offsets.tolist() == [0] and len(csr) == 0
     # one far-away particle must not blow up the grid or lose pairs
     pos, box, _ = cloud((False, False), seed=6)
     pos = np.vstack([pos, [[1e7, -3e6]]])
-    np.testing.assert_array_equal(cells.build_pairs_cells(pos, 0.31).i, build_pairs(pos, 0.31).i)
+    got = neighbour_list.build_pairs_cells(pos, 0.31)
+    np.testing.assert_array_equal(got.i, build_pairs(pos, 0.31).i)
     with pytest.raises(ValueError, match="half the periodic length"):
         cells.build_csr(pos[:-1], 0.9, Box((0, 0), (1.6, 1.6), (True, True)))
 
@@ -128,17 +147,17 @@ def test_static_pairs_are_left_out():
 def test_skinned_list_rebuilds_only_when_needed():
     pos, box, fields = cloud((True, True), seed=8)
     re = 3.1 * L0
-    nl = cells.CellNeighbourList(re, SKIN, box)
+    nl = neighbour_list.CellNeighbourList(re, SKIN, box)
     assert nl.update(pos) and nl.builds == 1
     rng = np.random.default_rng(9)
     moved = pos + rng.uniform(-0.2, 0.2, pos.shape) * SKIN  # |d| < skin/2
     moved[0] += SIDE * L0  # a particle wrapped through the box is not a move
     assert not nl.update(moved)
     assert nl.csr is not None
-    wf, period = get_weight("wf2"), cells.box_period(box)
+    wf, period = get_weight("wf2"), geometry.box_period(box)
     pl = build_pairs(moved, re, box)
-    got = kernels.number_density(
-        nl.csr.offsets, nl.csr.nbr, moved, period, 2, re, np.empty(len(pos))
+    got = kernels.number_density(compiled_weight("wf2"))(
+        nl.csr.offsets, nl.csr.nbr, moved, period, re, np.empty(len(pos))
     )
     close(got, ops.number_density(pl, wf.w(pl.r, re)))
     moved[5] += 0.6 * SKIN
@@ -150,43 +169,44 @@ def test_skinned_list_rebuilds_only_when_needed():
 
 
 def test_weights_match_reference():
-    r = np.linspace(0.0, 0.5, 101)[1:]
+    """The compiled formulas are the numpy ones: W, W', W'' inside the support."""
+    r = np.linspace(0.0, 0.31, 101)[1:]
     re = 0.31
-    for name, code in kernels.WEIGHT_CODES.items():
-        wf = get_weight(name)
-        for mine, ref in (
-            (kernels.weight, wf.w),
-            (kernels.dweight, wf.dw),
-            (kernels.d2weight, wf.d2w),
-        ):
-            got = np.array([mine(code, x, re) for x in r])
-            close(got, ref(r, re))
+    for name in ("wf1", "wf2"):
+        wf, support = get_weight(name), formulas.support(compiled_weight(name))
+        got = np.array([support(x, re) for x in r])
+        for k, ref in enumerate((wf.w, wf.dw, wf.d2w)):
+            close(got[:, k], ref(r, re))
 
 
 @pytest.mark.parametrize("wname", ["wf1", "wf2"])
 @pytest.mark.parametrize("rr", RADII)
 def test_density_gradient_divergence(case, wname, rr):
     _, pos, box, f, csr = case
-    re, wf, wc = rr * L0, get_weight(wname), kernels.weight_code(wname)
+    re, wf, wt = rr * L0, get_weight(wname), compiled_weight(wname)
     n0, _ = ops.lattice_constants(wf, rr, L0)
     pl = build_pairs(pos, re, box)
     w = wf.w(pl.r, re)
     a, n = args(csr, pos, box), len(pos)
-    close(kernels.number_density(*a, wc, re, np.empty(n)), ops.number_density(pl, w))
+    close(kernels.number_density(wt)(*a, re, np.empty(n)), ops.number_density(pl, w))
     close(
-        kernels.gradient(*a, f["phi"], wc, re, n0, np.empty((n, 2))),
+        kernels.gradient(wt)(*a, f["phi"], re, ops.DIM / n0, np.empty((n, 2))),
         ops.gradient(pl, f["phi"], w, n0),
     )
     close(
-        kernels.divergence(*a, f["u"], wc, re, n0, np.empty(n)), ops.divergence(pl, f["u"], w, n0)
+        kernels.divergence(wt)(*a, f["u"], re, ops.DIM / n0, np.empty(n)),
+        ops.divergence(pl, f["u"], w, n0),
     )
 
 
+@pytest.mark.parametrize("gname", GRADIENTS.names())
 @pytest.mark.parametrize("wname", ["wf1", "wf2"])
 @pytest.mark.parametrize("rr", RADII)
-def test_pressure_gradients(case, wname, rr):
+def test_pressure_gradients(case, gname, wname, rr):
     _, pos, box, f, csr = case
-    re, wf, wc = rr * L0, get_weight(wname), kernels.weight_code(wname)
+    re, wf, wt = rr * L0, get_weight(wname), compiled_weight(wname)
+    model = get_gradient(gname)
+    grad = formulas.gradient(model)
     n0, _ = ops.lattice_constants(wf, rr, L0)
     a, n, p = args(csr, pos, box), len(pos), f["p"]
     # a mask that leaves particles out (the reference solver drops dummy particles this way)
@@ -196,38 +216,55 @@ def test_pressure_gradients(case, wname, rr):
         keep = m[full.i] & m[full.j]
         pl = PairList(full.i[keep], full.j[keep], full.dx[keep], full.r[keep], n, re)
         w = wf.w(pl.r, re)
-        pmin = kernels.neighbour_min(*a, p, m, wc, re, np.empty(n))
+        pmin = kernels.neighbour_min(wt)(*a, p, m, re, np.empty(n))
         close(pmin, ops.neighbour_min(pl, p, w))
-        ref1 = ops.pgm1(pl, p, w, n0)
-        ref1[~m] = 0.0
-        close(kernels.pgm1(*a, p, m, wc, re, n0, np.empty((n, 2))), ref1)
-        close(kernels.pgm2(*a, p, pmin, m, wc, re, n0, np.empty((n, 2))), ops.pgm2(pl, p, w, n0))
-        close(kernels.pgm3(*a, p, m, wc, re, n0, np.empty((n, 2))), ops.pgm3(pl, p, w, n0))
+        ref = model(pl, p, w, n0)
+        ref[~m] = 0.0
+        got = kernels.pressure_gradient(wt, grad)(
+            *a, p, pmin, m, re, model.prefactor(n0), np.empty((n, 2)), ALL_ROWS
+        )
+        close(got, ref)
 
 
-LAPLACIANS = [(name, False) for name in kernels.LAPLACIAN_CODES] + [("xu-jin", True)]
+def _laplacians() -> list[tuple[str, bool]]:
+    return [(name, False) for name in LAPLACIANS.names()] + [("xu-jin", True)]
 
 
-@pytest.mark.parametrize("lname,gcorr", LAPLACIANS)
+def laplacian_kernel(lname, gcorr, wname, rr, csr, pos, box, phi, rowsum=NO_ROWS):
+    """The row kernel's Laplacian of ``phi`` (n,) or (n, 2), as a solver calls it."""
+    re, wf, wt = rr * L0, get_weight(wname), compiled_weight(wname)
+    n0, lam = ops.lattice_constants(wf, rr, L0)
+    model = get_laplacian(lname, gradient_correction=gcorr)
+    lap = formulas.laplacian(model)
+    a, n = args(csr, pos, box), len(pos)
+    s = kernels.NO_MOMENT
+    if lap.has_moment:
+        s = kernels.moments(wt, lap)(*a, re, np.empty(n))
+    field = np.ascontiguousarray(phi.reshape(n, -1))
+    out = np.empty_like(field)
+    kernels.laplacian_field(wt, lap)(
+        *a, field, re, model.prefactor(n0, lam), s, ops.DIM / n0, gcorr, out, rowsum, ALL_ROWS
+    )
+    return out.reshape(phi.shape)
+
+
+@pytest.mark.parametrize("lname,gcorr", _laplacians())
 @pytest.mark.parametrize("wname", ["wf1", "wf2"])
 @pytest.mark.parametrize("rr", RADII)
 def test_laplacians(case, lname, gcorr, wname, rr):
     _, pos, box, f, csr = case
-    re, wf, wc = rr * L0, get_weight(wname), kernels.weight_code(wname)
+    re, wf = rr * L0, get_weight(wname)
     n0, lam = ops.lattice_constants(wf, rr, L0)
-    model = ops.get_laplacian(lname, gradient_correction=gcorr)
-    code = kernels.laplacian_code(lname)
-    pref = kernels.laplacian_prefactor(code, n0, lam)
+    model = get_laplacian(lname, gradient_correction=gcorr)
     pl = build_pairs(pos, re, box)
-    a, n = args(csr, pos, box), len(pos)
-    got = kernels.laplacian(*a, f["phi"], code, wc, re, pref, n0, gcorr, np.empty(n))
+    n = len(pos)
+    got = laplacian_kernel(lname, gcorr, wname, rr, csr, pos, box, f["phi"])
     close(got, model.apply(pl, f["phi"], wf, re, n0, lam))
     rows = np.empty(n)
-    got = kernels.laplacian_vec(*a, f["u"], code, wc, re, pref, n0, gcorr, np.empty((n, 2)), rows)
+    got = laplacian_kernel(lname, gcorr, wname, rr, csr, pos, box, f["u"], rows)
     close(got, model.apply(pl, f["u"], wf, re, n0, lam))
     c = model.coefficients(pl, wf, re, n0, lam)
     close(rows, pl.sum_sym(np.abs(c)))
-    close(kernels.laplacian_abs_rowsum(*a, code, wc, re, pref, np.empty(n)), rows)
 
 
 # ---------------------------------------------------------------- collision, stabilization
@@ -291,6 +328,7 @@ def test_collision(case, wall_share):
 def test_stabilization(case, with_walls, wname):
     _, pos, box, f, csr = case
     re, wf = 2.1 * L0, get_weight(wname)
+    factor = ops.STABILIZATION.prefactor(0.01, L0, ops.lattice_constants(wf, 2.1, L0)[0])
     n0, _ = ops.lattice_constants(wf, 2.1, L0)
     kind = _kinds(pos)
     vel = f["u"].copy()
@@ -298,18 +336,8 @@ def test_stabilization(case, with_walls, wname):
     inner = (kind == Kind.FLUID) & (pos[:, 1] < 1.3)  # the top rows play the free surface
     pl = build_pairs(pos, re, box)
     ref = stabilization_numpy(pl, vel, kind, inner, with_walls, wf, re, n0, L0, 0.01)
-    got = kernels.stabilization(
-        *args(csr, pos, box),
-        vel,
-        kind,
-        inner,
-        with_walls,
-        kernels.weight_code(wname),
-        re,
-        n0,
-        L0,
-        0.01,
-        np.empty_like(vel),
+    got = kernels.stabilization(compiled_weight(wname))(
+        *args(csr, pos, box), vel, kind, inner, with_walls, re, factor, np.empty_like(vel)
     )
     close(got, ref)
 
@@ -321,8 +349,8 @@ def test_stabilization(case, with_walls, wname):
 def test_lattice_number_density_oracle(wname, rr, n0_expected):
     pos, box = ops.lattice_pairs(12, L0)
     csr = cells.build_csr(pos, rr * L0, box)
-    n = kernels.number_density(
-        *args(csr, pos, box), kernels.weight_code(wname), rr * L0, np.empty(len(pos))
+    n = kernels.number_density(compiled_weight(wname))(
+        *args(csr, pos, box), rr * L0, np.empty(len(pos))
     )
     np.testing.assert_allclose(n, n0_expected, atol=5e-5)
 
@@ -330,6 +358,9 @@ def test_lattice_number_density_oracle(wname, rr, n0_expected):
 def test_results_do_not_depend_on_thread_count():
     pos, box, f = cloud((True, False), seed=13)
     re, n = 3.1 * L0, len(pos)
+    wt = compiled_weight("wf2")
+    lap = formulas.laplacian(get_laplacian("xu-jin"))
+    grad = formulas.gradient(get_gradient("pgm1"))
     before = numba.get_num_threads()
     results = []
     try:
@@ -337,15 +368,20 @@ def test_results_do_not_depend_on_thread_count():
             numba.set_num_threads(threads)
             csr = cells.build_csr(pos, re + SKIN, box)
             a = args(csr, pos, box)
+            mask = np.ones(n, bool)
+            pmin = kernels.neighbour_min(wt)(*a, f["p"], mask, re, np.empty(n))
             results.append(
                 [
                     csr.offsets,
                     csr.nbr,
-                    kernels.number_density(*a, 1, re, np.empty(n)),
-                    kernels.laplacian_vec(
-                        *a, f["u"], 3, 2, re, 1.0, 2.0, True, np.empty((n, 2)), np.empty(n)
+                    kernels.number_density(compiled_weight("wf1"))(*a, re, np.empty(n)),
+                    kernels.laplacian_field(wt, lap)(
+                        *a, f["u"], re, 1.0, kernels.NO_MOMENT, 1.0, True, np.empty((n, 2)),
+                        np.empty(n), ALL_ROWS,
                     ),
-                    kernels.pgm1(*a, f["p"], np.ones(n, bool), 2, re, 2.0, np.empty((n, 2))),
+                    kernels.pressure_gradient(wt, grad)(
+                        *a, f["p"], pmin, mask, re, 1.0, np.empty((n, 2)), ALL_ROWS
+                    ),
                 ]
             )
     finally:
@@ -369,7 +405,125 @@ def test_import_without_numba_names_the_extra(monkeypatch):
 
 def test_kernel_kind_codes_match_the_particle_kinds() -> None:
     """The kernels compare kinds with plain ints; they must be mpsbench.physics.particles.Kind's."""
-    from mpsbench.solvers.numba_backend import kernels
-
     for name in ("FLUID", "WALL", "DUMMY", "INFLOW"):
-        assert getattr(kernels, name) == int(getattr(Kind, name)), name
+        assert getattr(formulas, name) == int(getattr(Kind, name)), name
+
+
+# --------------------------------------------------------------------------- models from outside
+
+
+PLUGIN_SRC = Path(__file__).resolve().parents[1] / "examples" / "plugin" / "src"
+
+
+@pytest.fixture
+def ko_local(monkeypatch: pytest.MonkeyPatch):
+    """The example plugin's ko-local Laplacian, registered for the test."""
+    monkeypatch.syspath_prepend(str(PLUGIN_SRC))
+    from mpsbench_example.laplacian import LocalKoshizukaOka
+
+    saved = LAPLACIANS._entries.get("ko-local")
+    LAPLACIANS.register("ko-local", LocalKoshizukaOka, replace=True, origin="user")
+    yield LocalKoshizukaOka
+    LAPLACIANS.unregister("ko-local")
+    if saved is not None:
+        LAPLACIANS._entries["ko-local"] = saved
+
+
+@pytest.mark.parametrize("wname", ["wf1", "wf2"])
+@pytest.mark.parametrize("rr", [2.1, 3.1])
+def test_a_plugin_laplacian_with_a_moment_runs_in_the_kernels(case, ko_local, wname, rr):
+    """ko-local (c_ij = 2D W_ij / mean(S_i, S_j), S_i = sum_j W r^2): the row kernel, the
+    half-list kernel and the diffusion entries against the numpy evaluation of the same class."""
+    _, pos, box, f, csr = case
+    re, wf = rr * L0, get_weight(wname)
+    n0, lam = ops.lattice_constants(wf, rr, L0)
+    model = get_laplacian("ko-local")
+    pl = build_pairs(pos, re, box)
+    want = model.apply(pl, f["u"], wf, re, n0, lam)
+    n = len(pos)
+    rows = np.empty(n)
+    close(laplacian_kernel("ko-local", False, wname, rr, csr, pos, box, f["u"], rows), want)
+    close(rows, pl.sum_sym(np.abs(model.coefficients(pl, wf, re, n0, lam))))
+    # the half-list kernels (moments summed over pairs too)
+    wt, lap = compiled_weight(wname), formulas.laplacian(model)
+    half = cells.build_csr(pos, max(RADII) * L0 + SKIN, box, half=True)
+    a = args(half, pos, box)
+    bounds = pairs.chunk_bounds(half.offsets)
+    acc_n = np.zeros((pairs.CHUNKS, n))
+    pairs.pair_sum_pairs(wt, lap.moment)(*a, re, bounds, acc_n)
+    s = np.empty(n)
+    pairs.sum_chunks(acc_n, s)
+    close(s, pl.sum_sym(wf.w(pl.r, re) * pl.r**2))
+    acc, acc_rows = np.zeros((pairs.CHUNKS, n, 2)), np.zeros((pairs.CHUNKS, n))
+    pairs.laplacian_pairs(wt, lap)(*a, f["u"], re, model.prefactor(n0, lam), s, bounds, acc,
+                                   acc_rows)
+    close(acc.sum(axis=0), want)
+
+
+def test_a_weight_defined_here_compiles_into_the_kernels():
+    """A weighting function that is not a built-in (a plugin's): the kernels use its formulas."""
+    from mpsbench.physics.weights import WeightFunction
+
+    class Quartic(WeightFunction):
+        name = "test-quartic"
+
+        @staticmethod
+        def w_inside(r, re):  # type: ignore[no-untyped-def]
+            return (1 - r / re) ** 4
+
+        @staticmethod
+        def dw_inside(r, re):  # type: ignore[no-untyped-def]
+            return -4 / re * (1 - r / re) ** 3
+
+        @staticmethod
+        def d2w_inside(r, re):  # type: ignore[no-untyped-def]
+            return 12 / re**2 * (1 - r / re) ** 2
+
+    pos, box, f = cloud((True, True), seed=21)
+    re = 3.1 * L0
+    csr = cells.build_csr(pos, re, box)
+    wf = Quartic()
+    pl = build_pairs(pos, re, box)
+    got = kernels.number_density(formulas.weight(wf))(*args(csr, pos, box), re,
+                                                      np.empty(len(pos)))
+    close(got, ops.number_density(pl, wf.w(pl.r, re)))
+
+
+def test_kernels_of_different_models_have_different_cache_keys():
+    """The disk cache keys a kernel by what its code depends on (the models' formulas
+    included), not by numba's pickle of the closure, which differs in every process."""
+    from mpsbench.solvers.numba_backend._jit import fingerprint
+
+    wf1 = kernels.number_density(compiled_weight("wf1"))
+    wf2 = kernels.number_density(compiled_weight("wf2"))
+    assert wf1 is kernels.number_density(compiled_weight("wf1"))  # one build per model
+    keys = {fingerprint(k.py_func) for k in (wf1, wf2, wf1.serial, wf2.serial)}
+    assert len(keys) == 4
+    assert fingerprint(wf1.py_func) == fingerprint(wf1.py_func)
+
+
+_CACHE_PROBE = textwrap.dedent(
+    """
+    import sys
+    import numpy as np
+    from mpsbench.physics.weights import get_weight
+    from mpsbench.solvers.numba_backend import cells, formulas, geometry, kernels
+
+    pos = np.random.default_rng(0).uniform(0.0, 1.0, (200, 2))
+    csr = cells.build_csr(pos, 0.2)
+    fn = kernels.number_density(formulas.weight(get_weight("wf2"))).serial
+    fn(csr.offsets, csr.nbr, pos, geometry.box_period(None), 0.2, np.empty(200))
+    print(sum(fn.stats.cache_hits.values()), sum(fn.stats.cache_misses.values()))
+    """
+)
+
+
+def test_model_kernels_load_from_the_disk_cache_in_a_new_process(tmp_path):
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)}
+    runs = [
+        subprocess.run([sys.executable, "-c", _CACHE_PROBE], capture_output=True, text=True,
+                       env=env, timeout=300, check=True).stdout.split()
+        for _ in range(2)
+    ]
+    assert runs[0] == ["0", "1"], runs  # compiled and saved
+    assert runs[1] == ["1", "0"], runs  # loaded: no compilation in the second process

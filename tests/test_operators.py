@@ -6,13 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from mpsbench.physics.gradients import GRADIENTS, get_gradient, pgm1, pgm2, pgm3
+from mpsbench.physics.laplacians import LAPLACIANS, get_laplacian
 from mpsbench.physics.neighbours import build_pairs
 from mpsbench.physics.operators import (
-    GRADIENTS,
-    LAPLACIANS,
     divergence,
-    get_gradient,
-    get_laplacian,
     gradient,
     gradient_matrix,
     interior_index,
@@ -20,9 +18,6 @@ from mpsbench.physics.operators import (
     lattice_pairs,
     number_density,
     particle_constants,
-    pgm1,
-    pgm2,
-    pgm3,
 )
 from mpsbench.physics.particles import block
 from mpsbench.physics.weights import get_weight

@@ -30,7 +30,8 @@ from mpsbench.cases import CASES
 from mpsbench.commands.catalog import models_catalog, solvers_catalog
 from mpsbench.errors import ConfigError
 from mpsbench.physics.config import Models
-from mpsbench.physics.operators import GRADIENTS, LAPLACIANS, KoshizukaOka
+from mpsbench.physics.gradients import GRADIENTS
+from mpsbench.physics.laplacians import LAPLACIANS, KoshizukaOka
 from mpsbench.physics.weights import WEIGHTS, WF2
 from mpsbench.registry import PluginLoadError
 from mpsbench.run.protocol import SOLVERS
@@ -50,7 +51,7 @@ class GoodLaplacian(KoshizukaOka):
 
 
 class NotALaplacian:
-    """Has no coefficients() method."""
+    """Has no pair formula."""
 
 
 class GoodWeight(WF2):
@@ -60,10 +61,11 @@ class GoodWeight(WF2):
 
 
 class HalfWeight:
-    """A weighting function without dw / d2w."""
+    """A weighting function without W' and W''."""
 
-    def w(self, r: Any, re: float) -> Any:
-        return np.zeros_like(r)
+    @staticmethod
+    def w_inside(r: Any, re: float) -> Any:
+        return 1.0 - r / re
 
 
 class NoStepSolver:
@@ -83,7 +85,7 @@ PLUGINS: dict[str, list[tuple[str, str]]] = {
     "mpsbench.laplacians": [
         ("plugin-good", f"{HERE}:GoodLaplacian"),
         ("plugin-missing-module", "mpsbench_no_such_package.models:Lap"),
-        ("plugin-no-coefficients", f"{HERE}:NotALaplacian"),
+        ("plugin-no-pair", f"{HERE}:NotALaplacian"),
         ("xu-jin", f"{HERE}:NotALaplacian"),  # cannot shadow a built-in
     ],
     "mpsbench.weights": [
@@ -150,7 +152,7 @@ def test_models_catalog_lists_broken_plugins_with_reason(plugins: None) -> None:
     assert "plugin-missing-module" in missing["error"]
     assert "ModuleNotFoundError" in missing["error"]
     assert "mpsbench_no_such_package" in missing["error"]
-    assert "no coefficients() method" in laps["plugin-no-coefficients"]["error"]
+    assert "has no pair(r, w, dw, d2w)" in laps["plugin-no-pair"]["error"]
     # built-ins win over a plugin of the same name, and still work; the plugin is reported
     assert laps["xu-jin"]["origin"] == "builtin" and laps["xu-jin"]["available"]
     (shadow,) = [r for r in cat["laplacians"]
@@ -162,7 +164,7 @@ def test_models_catalog_lists_broken_plugins_with_reason(plugins: None) -> None:
         assert laps[name]["available"]
     weights = by_name(cat["weights"])
     assert weights["plugin-wf"]["available"]
-    assert "no callable dw()" in weights["plugin-half-wf"]["error"]
+    assert "has no dw_inside(r, re)" in weights["plugin-half-wf"]["error"]
     assert all(r["available"] for r in cat["gradients"])
 
 

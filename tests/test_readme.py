@@ -9,14 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from mpsbench.physics.config import Models
+from mpsbench.physics.gradients import GRADIENTS
+from mpsbench.physics.laplacians import LAPLACIANS, get_laplacian
 from mpsbench.physics.neighbours import build_pairs
-from mpsbench.physics.operators import (
-    GRADIENTS,
-    LAPLACIANS,
-    get_laplacian,
-    lattice_constants,
-    lattice_pairs,
-)
+from mpsbench.physics.operators import lattice_constants, lattice_pairs
 from mpsbench.physics.weights import WEIGHTS, get_weight
 
 README = (Path(__file__).resolve().parents[1] / "README.md").read_text()

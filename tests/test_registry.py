@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 import mpsbench.registry as registry_module
-from mpsbench.physics.operators import LAPLACIANS, _validate_laplacian
+from mpsbench.physics.laplacians import LAPLACIANS, _validate_laplacian
 from mpsbench.physics.weights import _validate_weight
 from mpsbench.registry import PluginLoadError, Registry, UnknownNameError, import_path
 from mpsbench.run.protocol import SOLVERS, _validate_solver
@@ -30,12 +30,19 @@ def plugin_module(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> str:
 
             class Good:
                 """A good weighting function."""
-                def w(self, r, re): return np.zeros_like(r)
-                def dw(self, r, re): return np.zeros_like(r)
-                def d2w(self, r, re): return np.zeros_like(r)
+                @staticmethod
+                def w_inside(r, re): return 1.0 - r / re
+                @staticmethod
+                def dw_inside(r, re): return -1.0 / re
+                @staticmethod
+                def d2w_inside(r, re): return 0.0 * r
 
             class NoDerivative:
-                def w(self, r, re): return r
+                @staticmethod
+                def w_inside(r, re): return r
+
+            class MethodWeight(Good):
+                def dw_inside(self, r, re): return -1.0 / re
 
             class NotASolver:
                 name = "x"
@@ -107,9 +114,14 @@ def test_register_rules() -> None:
         reg.register("a", 2)
     reg.register("a", 3, replace=True)
     assert reg.get("a") == 3
-    for bad in ("", None, 5):
-        with pytest.raises(ValueError, match="non-empty string"):
+    # names become folder names of a report: nothing that climbs out of a folder or hides
+    for bad in ("", None, 5, "a/b", "../x", "..", ".hidden", "a\\b", "x\x00y", "a..b", "a b",
+                "x" * 101):
+        with pytest.raises(ValueError, match="gizmo name .* is not allowed"):
             reg.register(bad, 1)  # type: ignore[arg-type]
+    for good in ("wf1", "xu-jin-analytic", "my_model.v2", "a+b", "9lives"):
+        reg.register(good, 1)
+        reg.unregister(good)
     reg.unregister("a")
     reg.unregister("never-there")  # no error
     assert reg.names() == []
@@ -134,10 +146,16 @@ def test_broken_entry_reports_reason_and_spares_the_others(plugin_module: str) -
     with pytest.raises(PluginLoadError, match="AttributeError"):
         reg.get("missing-attr")
     with pytest.raises(
-        PluginLoadError, match=r"TypeError: weighting function has no callable dw\(\)"
+        PluginLoadError, match=r"TypeError: weighting function 'NoDerivative' has no "
+        r"dw_inside\(r, re\)"
     ):
         reg.get("wrong-shape")
     assert not reg.entry("wrong-shape").loaded
+    # a formula must be a static method: the numba backend compiles the function itself
+    reg.register("method", f"{plugin_module}:MethodWeight")
+    with pytest.raises(PluginLoadError, match=r"has dw_inside as a method: make it a "
+                       r"@staticmethod of \(r, re\)"):
+        reg.get("method")
 
     assert reg.get("good").__name__ == "Good"
     report = reg.try_load_all()
@@ -145,6 +163,7 @@ def test_broken_entry_reports_reason_and_spares_the_others(plugin_module: str) -
     assert report["missing-module"].startswith("ModuleNotFoundError")
     assert report["missing-attr"].startswith("AttributeError")
     assert report["wrong-shape"].startswith("TypeError")
+    assert report["method"].startswith("TypeError")
 
 
 def test_entry_points_are_scanned_once_and_builtins_win(
@@ -208,7 +227,7 @@ def test_solver_validation_rejects_wrong_shapes(plugin_module: str) -> None:
 def test_laplacian_validation(plugin_module: str) -> None:
     reg: Registry[Any] = Registry("Laplacian model", validate=_validate_laplacian)
     reg.register("bad", f"{plugin_module}:Good")
-    with pytest.raises(PluginLoadError, match=r"has no coefficients\(\) method"):
+    with pytest.raises(PluginLoadError, match=r"has no pair\(r, w, dw, d2w\)"):
         reg.get("bad")
 
 

@@ -21,6 +21,7 @@ import pytest
 from mpsbench import cli
 from mpsbench.cases import CASES, Case, CaseCheck, CaseRun, Param
 from mpsbench.errors import ConfigError
+from mpsbench.results.lock import LOCK_FILE
 from mpsbench.results.records import load_records
 from mpsbench.results.study_spec import StudyFileError, check_tolerances, load_study, parse_study
 
@@ -150,7 +151,7 @@ def test_tier_grid_when_no_grid(tmp_path: Path) -> None:
 
 
 def test_plugin_model_name_is_accepted(tmp_path: Path) -> None:
-    from mpsbench.physics.operators import LAPLACIANS, KoshizukaOka
+    from mpsbench.physics.laplacians import LAPLACIANS, KoshizukaOka
 
     class Mine(KoshizukaOka):
         name = "mine"
@@ -341,14 +342,14 @@ def test_cli_lock_refuses_a_second_run(
     holder = subprocess.Popen(
         [sys.executable, "-c", "import fcntl, sys, time; fh = open(sys.argv[1], 'a+'); "
          "fcntl.lockf(fh.fileno(), fcntl.LOCK_EX); fh.write('4242'); fh.flush(); "
-         "print('locked', flush=True); time.sleep(60)", str(out / ".study.lock")],
+         "print('locked', flush=True); time.sleep(60)", str(out / LOCK_FILE)],
         stdout=subprocess.PIPE, text=True,
     )
     try:
         assert holder.stdout is not None and holder.stdout.readline().strip() == "locked"
         path = write(tmp_path, GOOD)
         assert cli.main(["study", "run", str(path), "--out", str(out)]) == 2
-        assert "in use by another 'mpsbench study run' (pid 4242)" in capsys.readouterr().err
+        assert "in use by another mpsbench process (pid 4242)" in capsys.readouterr().err
         assert not (out / "plan.json").exists()
     finally:
         holder.kill()

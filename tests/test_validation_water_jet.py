@@ -34,7 +34,7 @@ from mpsbench.physics.config import FlowPhysics, Models
 from mpsbench.physics.operators import lattice_constants
 from mpsbench.physics.particles import Kind, Particles, block
 from mpsbench.results.records import COMMON_COLUMNS
-from mpsbench.run.protocol import make_solver
+from mpsbench.run.specs import make_solver
 
 REQUIRED_PARAMS = ("gradient", "stabilization", "alpha_s", "collision_distance", "weight", "l0")
 REQUIRED_METRICS = (
@@ -375,7 +375,8 @@ def test_diagnostics_survive_outflow_removal() -> None:
 
 def test_model_choices_come_from_the_registries() -> None:
     """A plugin's weighting function, Laplacian or gradient model is an allowed jet parameter."""
-    from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+    from mpsbench.physics.gradients import GRADIENTS
+    from mpsbench.physics.laplacians import LAPLACIANS
     from mpsbench.physics.weights import WEIGHTS
 
     case = get_case("water-jet")

@@ -26,6 +26,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from mpsbench.errors import MpsbenchError
+
 FloatArray = NDArray[np.float64]
 
 DATA_DIR = Path(__file__).resolve().parent / "data"
@@ -46,7 +48,7 @@ LOBOVSKY_H = 0.3  # m, initial water height
 PA_PER_MBAR = 100.0
 
 
-class DataFileError(ValueError):
+class DataFileError(MpsbenchError, ValueError):
     """A reference data file is malformed: missing header key or column, wrong unit, bad value."""
 
 
@@ -111,7 +113,14 @@ def load(name_or_path: str | Path, schema: dict[str, str] | None = None) -> Data
         raise DataFileError(f"data file {path} does not exist")
     meta: dict[str, str] = {}
     body: list[str] = []
-    for line in path.read_text(encoding="utf-8").splitlines():
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise DataFileError(f"{path.name}: not UTF-8 text ({exc.reason} at byte {exc.start})"
+                            ) from None
+    except OSError as exc:
+        raise DataFileError(f"data file {path}: cannot read: {exc.strerror or exc}") from None
+    for line in text.splitlines():
         stripped = line.strip()
         if stripped.startswith("#"):
             key, sep, value = stripped.lstrip("#").partition(":")

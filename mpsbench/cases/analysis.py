@@ -20,7 +20,8 @@ import numpy as np
 import pandas as pd
 
 from mpsbench.cases.checks import CaseCheck
-from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+from mpsbench.physics.gradients import GRADIENTS
+from mpsbench.physics.laplacians import LAPLACIANS
 from mpsbench.physics.weights import WEIGHTS
 
 # The built-in models in the order the tables list them (docs/method.md sections 1-3).

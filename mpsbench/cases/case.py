@@ -17,7 +17,6 @@ Built-in cases live in :mod:`mpsbench.validations`; plugins add cases through th
 from __future__ import annotations
 
 import itertools
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,7 +26,9 @@ import numpy as np
 
 from mpsbench.cases.checks import CaseCheck
 from mpsbench.errors import ConfigError
+from mpsbench.params import Param
 from mpsbench.registry import Registry
+from mpsbench.run.estimate import RunEstimate
 from mpsbench.run.runner import RunResult
 
 if TYPE_CHECKING:  # pandas is imported when a case analyses records, not when the CLI starts
@@ -36,86 +37,8 @@ if TYPE_CHECKING:  # pandas is imported when a case analyses records, not when t
 TIERS = ("smoke", "quick", "paper")
 
 
-@dataclass(frozen=True)
-class Param:
-    """A named case parameter.  ``kind`` is float, int, str or bool; ``unit`` is documentation."""
-
-    name: str
-    default: Any
-    help: str = ""
-    unit: str = ""
-    kind: type = float
-    choices: tuple[Any, ...] | None = None
-    minimum: float | None = None
-    exclusive_minimum: bool = False
-    maximum: float | None = None
-
-    def allowed(self) -> str:
-        if self.choices is not None:
-            return "one of " + ", ".join(str(c) for c in self.choices)
-        bounds = []
-        if self.minimum is not None:
-            bounds.append(f"{'>' if self.exclusive_minimum else '>='} {self.minimum:g}")
-        if self.maximum is not None:
-            bounds.append(f"<= {self.maximum:g}")
-        text = f"a {self.kind.__name__}"
-        return f"{text} {' and '.join(bounds)}" if bounds else text
-
-    def parse(self, text: str) -> Any:
-        """Convert text from ``--set key=value`` (or a TOML value) and validate it."""
-        value: Any = text
-        if isinstance(text, str):
-            try:
-                if self.kind is bool:
-                    low = text.strip().lower()
-                    if low not in ("true", "false", "1", "0", "on", "off", "yes", "no"):
-                        raise ValueError(text)
-                    value = low in ("true", "1", "on", "yes")
-                elif self.kind is float:
-                    value = _parse_float(text)
-                elif self.kind is int:
-                    value = int(text)
-                else:
-                    value = text.strip()
-            except ValueError:
-                raise ConfigError(
-                    f"parameter {self.name} = {text!r} is not allowed: {self.allowed()}"
-                ) from None
-        return self.check(value)
-
-    def check(self, value: Any) -> Any:
-        bad = ConfigError(f"parameter {self.name} = {value!r} is not allowed: {self.allowed()}")
-        if self.kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if self.kind is float and not (isinstance(value, float) and math.isfinite(value)):
-            raise bad
-        if self.kind is int and (not isinstance(value, int) or isinstance(value, bool)):
-            raise bad
-        if self.kind is bool and not isinstance(value, bool):
-            raise bad
-        if self.kind is str and not isinstance(value, str):
-            raise bad
-        if self.choices is not None and value not in self.choices:
-            raise bad
-        if self.minimum is not None:
-            if value < self.minimum or (self.exclusive_minimum and value == self.minimum):
-                raise bad
-        if self.maximum is not None and value > self.maximum:
-            raise bad
-        return value
-
-
 def _signature(params: dict[str, Any]) -> tuple[tuple[str, str], ...]:
     return tuple(sorted((k, repr(v)) for k, v in params.items()))
-
-
-def _parse_float(text: str) -> float:
-    """Floats, plus simple fractions such as ``1/40`` (handy for spacings)."""
-    text = text.strip()
-    if "/" in text:
-        num, _, den = text.partition("/")
-        return float(num) / float(den)
-    return float(text)
 
 
 @dataclass
@@ -225,6 +148,13 @@ class Case:
     # ---- to implement
     def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
         raise NotImplementedError
+
+    def estimate(self, params: dict[str, Any]) -> RunEstimate | None:
+        """What one run will cost (particles, pairs, steps, a fixed dt's stability limit),
+        from the parameters alone, in well under a millisecond: nothing may be built here.
+        None (the default) means unknown; the size guard then only counts runs
+        (:mod:`mpsbench.run.estimate`, :mod:`mpsbench.results.guard`)."""
+        return None
 
     def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
         """The gates: pass/fail decisions that set the exit status of ``mpsbench validate``

@@ -229,7 +229,8 @@ class NumericalUncertainty:
 def _sets(records: list[dict[str, Any]], ref: Refinement,
           params: Sequence[str]) -> list[RefinementSet]:
     skip = {ref.over, *ref.ignore}
-    shared = ["solver", *(p for p in params if p not in skip)]
+    # one solver (and its options, e.g. numba threads) per set
+    shared = ["solver", "solver_options", *(p for p in params if p not in skip)]
     groups: dict[tuple[tuple[str, Any], ...], dict[float, dict[str, Any]]] = {}
     broken: dict[tuple[tuple[str, Any], ...], dict[float, dict[str, Any]]] = {}
     for r in records:

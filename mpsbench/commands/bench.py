@@ -1,6 +1,6 @@
 """``mpsbench bench``: particle-steps per second of solver backends, side by side.
 
-Runs the benchmark dam break (:mod:`mpsbench.run.bench`) at each ``--n`` on each ``--solver``
+Runs the benchmark dam break (:mod:`mpsbench.testing.bench`) at each ``--n`` on each ``--solver``
 (and PySPH's WCSPH with ``--pysph``) in this process, interleaved block by block, and prints
 the median and spread of each one's particle-steps/s with the ratio to the first solver
 measured in the same rounds; ``--json`` prints the records with the environment instead.
@@ -24,9 +24,9 @@ from mpsbench.errors import UsageError
 
 ORDER = 35
 # the defaults live with the code they describe; the help text quotes the same numbers
-DEFAULT_SIZES = (10_000, 40_000)  # = mpsbench.run.bench.DEFAULT_SIZES (test_bench_cli checks)
-DEFAULT_BUDGET_S = 20.0  # = mpsbench.run.bench.DEFAULT_BUDGET_S
-DEFAULT_STEPS = 20  # = mpsbench.run.bench.DEFAULT_STEPS
+DEFAULT_SIZES = (10_000, 40_000)  # = mpsbench.testing.bench.DEFAULT_SIZES (test_bench_cli checks)
+DEFAULT_BUDGET_S = 20.0  # = mpsbench.testing.bench.DEFAULT_BUDGET_S
+DEFAULT_STEPS = 20  # = mpsbench.testing.bench.DEFAULT_STEPS
 
 
 def register(sub: Any) -> None:
@@ -41,9 +41,9 @@ def register(sub: Any) -> None:
         "to the first solver with its min-max. Exit status: 0; 1 --compare found a slowdown; "
         "2 usage error.",
     )
-    p.add_argument("--solver", action="append", default=None, metavar="NAME",
-                   help="backend to time (repeatable; the first is the one ratios are to; "
-                   "default: every available backend, reference first)")
+    p.add_argument("--solver", action="append", default=None, metavar="SPEC",
+                   help="backend to time, NAME or NAME:key=value,... (repeatable; the first is "
+                   "the one ratios are to; default: every available backend, reference first)")
     p.add_argument("--n", action="append", type=int, default=None, metavar="N",
                    help="approximate particle count (repeatable; default: "
                    + ", ".join(str(n) for n in DEFAULT_SIZES) + ")")
@@ -87,12 +87,25 @@ def _default_solvers() -> list[str]:
     return sorted(out, key=lambda name: name != "reference")  # ratios to the reference
 
 
+def _check_memory(n: int) -> None:
+    """Refuse a size that cannot fit in this machine's memory (it would die of MemoryError
+    after minutes of set-up); the workload's largest radius is r_e = 3.1 l0."""
+    from mpsbench.results.guard import machine_memory
+    from mpsbench.run.estimate import memory_bytes, pairs_for
+
+    need, have = memory_bytes(n, pairs_for(n, 3.1)), machine_memory()
+    if have is not None and need > have:
+        raise UsageError(f"--n {n}: about {need / 2**30:.1f} GB for {n:,} particles, more than "
+                         f"this machine's {have / 2**30:.1f} GB")
+
+
 def _check(args: argparse.Namespace) -> None:
-    from mpsbench.run.bench import MIN_N
+    from mpsbench.testing.bench import MIN_N
 
     for n in args.n or []:
         if n < MIN_N:
             raise UsageError(f"--n {n} is not allowed: an integer >= {MIN_N}")
+        _check_memory(n)
     if args.steps < 1:
         raise UsageError(f"--steps {args.steps} is not allowed: an integer >= 1")
     if not args.budget > 0:
@@ -109,13 +122,13 @@ def _check(args: argparse.Namespace) -> None:
 
 
 def _contenders(args: argparse.Namespace) -> list[Any]:
-    from mpsbench.run.bench import Contender, solver_contender
+    from mpsbench.testing.bench import Contender, solver_contender
 
     # unknown (exit 2, "unknown solver ...") or unavailable backends fail here, before any run
     contenders = [solver_contender(name)
                   for name in dict.fromkeys(args.solver or _default_solvers())]
     if args.pysph:
-        from mpsbench.run.bench_pysph import NAME, PySPHWCSPH, pysph_missing
+        from mpsbench.testing.bench_pysph import NAME, PySPHWCSPH, pysph_missing
 
         missing = pysph_missing()
         if missing:
@@ -130,7 +143,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from mpsbench.results import bench_history as history
     from mpsbench.results.provenance import code_commit
     from mpsbench.results.records import environment
-    from mpsbench.run.bench import format_table, run_bench
+    from mpsbench.testing.bench import format_table, run_bench
 
     storage = Path(args.storage) if args.storage else history.DEFAULT_STORAGE
     saved = None

@@ -13,13 +13,14 @@ def register(sub: Any) -> None:
     p = sub.add_parser("models", help="list weighting functions, Laplacians and pressure gradients")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=cmd_models)
-    p = sub.add_parser("solvers", help="list solver backends and their capabilities")
+    p = sub.add_parser("solvers", help="list solver backends, their capabilities and options")
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")
     p.set_defaults(func=cmd_solvers)
 
 
 def models_catalog() -> dict[str, list[dict[str, Any]]]:
-    from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+    from mpsbench.physics.gradients import GRADIENTS
+    from mpsbench.physics.laplacians import LAPLACIANS
     from mpsbench.physics.weights import WEIGHTS
 
     out: dict[str, list[dict[str, Any]]] = {}
@@ -55,6 +56,7 @@ def _ignored_row(entry: Any) -> dict[str, Any]:
 
 def solvers_catalog() -> list[dict[str, Any]]:
     from mpsbench.run.protocol import SOLVERS
+    from mpsbench.run.specs import solver_options
 
     rows = []
     for name in SOLVERS.names():
@@ -67,6 +69,7 @@ def solvers_catalog() -> list[dict[str, Any]]:
                 version=str(cls.version),
                 description=entry.description or (cls.__doc__ or "").strip().split("\n")[0],
                 capabilities=cls.capabilities.as_dict(),
+                options=solver_options(cls),
                 error=None,
             )
         except Exception as exc:  # noqa: BLE001 - an unavailable backend is listed, not fatal
@@ -106,6 +109,11 @@ def cmd_solvers(args: argparse.Namespace) -> int:
             print(f"{r['name']} {r['version']}  {r['description']}")
             for k, v in r["capabilities"].items():
                 print(f"    {k:<11} {', '.join(v) if isinstance(v, list) else v}")
+            if r["options"]:
+                print(f"    options (--solver {r['name']}:key=value,...):")
+            for o in r["options"]:
+                print(f"      {o['name']} (default {o['default_text']}; {o['allowed']}): "
+                      f"{o['help']}")
         else:
             print(f"{r['name']}  [unavailable] {r['error']}")
     return 0

@@ -22,7 +22,9 @@ def register(sub: Any) -> None:
         "'mpsbench solvers'): API shape, declared capabilities, determinism, conservation, "
         "divergence reporting.",
     )
-    p.add_argument("solver", metavar="NAME", help="registered solver name, e.g. reference")
+    p.add_argument("solver", metavar="SPEC",
+                   help="registered solver name, e.g. reference, or NAME:key=value,... with "
+                   "options, e.g. numba:threads=1")
     p.add_argument("--json", action="store_true", help="print JSON instead of lines")
     p.add_argument(
         "-k",
@@ -37,14 +39,16 @@ def register(sub: Any) -> None:
 def cmd_check(args: argparse.Namespace) -> int:
     from mpsbench.errors import UsageError
     from mpsbench.run.protocol import SOLVERS
+    from mpsbench.run.specs import solver_spec
     from mpsbench.testing import ConformanceResult, check_solver, select_checks
 
-    name = args.solver
-    if name not in SOLVERS:
+    spec = args.solver
+    if spec.partition(":")[0] not in SOLVERS:
         raise UsageError(
-            f"unknown solver {name!r}; known solvers: {', '.join(SOLVERS.names()) or '(none)'}"
+            f"unknown solver {spec!r}; known solvers: {', '.join(SOLVERS.names()) or '(none)'}"
         )
-    SOLVERS.get(name)  # an unavailable backend is a usage error (PluginLoadError -> exit 2)
+    # an unavailable backend (PluginLoadError) or a bad option (ConfigError): exit 2
+    name = solver_spec(spec).text
     if args.select and not select_checks(args.select):
         raise UsageError(f"no check name contains {' or '.join(map(repr, args.select))}")
 

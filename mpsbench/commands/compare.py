@@ -70,6 +70,7 @@ def _compare(args: argparse.Namespace) -> tuple[int, dict[str, Any]]:
         summary_line,
     )
     from mpsbench.results.compare_json import comparison_to_json
+    from mpsbench.results.records import atomic_write_text
     from mpsbench.results.step_summary import append_step_summary
 
     for name in ("rtol", "atol"):
@@ -100,10 +101,11 @@ def _compare(args: argparse.Namespace) -> tuple[int, dict[str, Any]]:
         target = Path(args.markdown) if args.markdown else (
             (cur_path if cur_path.is_dir() else cur_path.parent) / "compare.md")
         try:
-            target.write_text(md)
+            atomic_write_text(target, md)
             print(f"\nmarkdown: {target}")
         except OSError as exc:
-            raise UsageError(f"cannot write {target}: {exc}") from None
+            raise UsageError(f"--markdown {target}: cannot write: {exc.strerror or exc}"
+                             ) from None
     if result.regressions:
         print(f"\nREGRESSION: {len(result.regressions)} beyond tolerance in "
               f"{len({c.record for c in result.regressions})} record(s):")

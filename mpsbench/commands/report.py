@@ -5,9 +5,13 @@ checks and report with the case's current code (so a plotting fix needs no new r
 top-level results, summary.md, index.html and figures/.  A case whose code is unavailable (or
 with ``--from-files``) is shown from the files an earlier render left.  Works on a folder from
 ``mpsbench validate all`` and on a single case folder from ``mpsbench validate CASE``.
-Exit status: 0 rendered, 2 DIR is not a results folder.  With ``--strict-claims`` the exit
-status is the verdict, as ``mpsbench validate --strict-claims`` would give it: 1 when a gate
-fails or a claim of the paper is refuted.
+Every input is read before anything is written, and a record, manifest or stored checks file
+that is unreadable, truncated or not allowed stops the command (exit 2, naming the file): no
+record is dropped from a report without a word.  The folder is locked while it is written
+(:mod:`mpsbench.results.lock`).
+Exit status: 0 rendered, 2 DIR is not a results folder, holds a broken file or is in use.  With
+``--strict-claims`` the exit status is the verdict, as ``mpsbench validate --strict-claims``
+would give it: 1 when a gate fails or a claim of the paper is refuted.
 """
 
 from __future__ import annotations
@@ -43,6 +47,16 @@ def register(sub: Any) -> None:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    from mpsbench.results.lock import folder_lock
+
+    out = Path(args.dir)
+    if not out.is_dir():
+        raise UsageError(f"{out}: no such folder")
+    with folder_lock(out, f"mpsbench report {out}", option="DIR"):
+        return _report(args, out)
+
+
+def _report(args: argparse.Namespace, out: Path) -> int:
     from mpsbench.cases import get_case
     from mpsbench.results.folder import case_folders, read_manifest, write_top_level
     from mpsbench.results.sections import (
@@ -53,9 +67,6 @@ def cmd_report(args: argparse.Namespace) -> int:
         verdict,
     )
 
-    out = Path(args.dir)
-    if not out.is_dir():
-        raise UsageError(f"{out}: no such folder")
     manifest = read_manifest(out)
     found = case_folders(out)
     if not found:
@@ -64,7 +75,8 @@ def cmd_report(args: argparse.Namespace) -> int:
     single = found[0][1].resolve() == out.resolve()
     sections: dict[str, CaseSection] = {}
     params: list[str] = []
-    for name, folder, records in found:
+    to_render: list[tuple[str, Case, Path, list[dict[str, Any]]]] = []
+    for name, folder, records in found:  # read every stored file before writing any
         case: Case | None = None
         why = "--from-files"
         if not args.from_files:
@@ -74,10 +86,13 @@ def cmd_report(args: argparse.Namespace) -> int:
                 why = f"case {name!r} is unavailable: {exc}"
                 print(f"{name}: {why}; using the files on disk", file=sys.stderr)
         if case is not None:
-            sections[name] = safe_render_case(case, records, folder)
+            to_render.append((name, case, folder, records))
+            sections[name] = CaseSection(name)  # keeps the order
             params += [p.name for p in case.params]
         else:
             sections[name] = case_from_disk(name, records, folder, why)
+    for name, case, folder, records in to_render:
+        sections[name] = safe_render_case(case, records, folder)
     # cases that could not run at all are known only from the manifest
     for entry in manifest.get("cases", []):
         name = str(entry.get("name", ""))

@@ -8,28 +8,27 @@ Output folder of a study::
     OUT/<case>/...              results, tables, figures, report.md (as 'mpsbench validate')
     OUT/tolerances.json         the study's tolerance checks
 
-Running the same study again skips every run whose record exists, so an interrupted study
-(Ctrl-C, a killed process, a lost machine) resumes where it stopped.  Two ``study run`` on the
-same folder at once are refused (a lock file, released by the system when the process dies).
+Running the same study again skips every run whose record exists -- the same run by its
+identity hash (case, solver, full parameter set), so widening the grid runs only the new
+combinations -- and an interrupted study (Ctrl-C, a killed process, a lost machine) resumes
+where it stopped.  Two mpsbench processes on the same folder at once are refused
+(:mod:`mpsbench.results.lock`, released by the system when the process dies).
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
-import os
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from mpsbench.errors import UsageError
+from mpsbench.results.lock import folder_lock
 
 ORDER = 35
 
 PLAN_FILE = "plan.json"
-LOCK_FILE = ".study.lock"
 
 
 def register(sub: Any) -> None:
@@ -62,6 +61,9 @@ def register(sub: Any) -> None:
                    help="check the file and print the planned runs, run nothing")
     r.add_argument("--no-report", action="store_true",
                    help="keep the records only: skip tables, figures and report.md")
+    r.add_argument("--yes", action="store_true",
+                   help="run a study above the size guard's thresholds (more than 5,000 runs, "
+                   "or a run of more than 1,000,000 particles)")
     r.set_defaults(func=cmd_run)
     s = ssub.add_parser(
         "status", help="show done / failed / pending runs of a study folder",
@@ -86,40 +88,6 @@ def _missing_action(parser: argparse.ArgumentParser) -> int:
 # --------------------------------------------------------------------------- run
 
 
-@contextlib.contextmanager
-def study_lock(out: Path) -> Iterator[None]:
-    """An exclusive lock on ``OUT/.study.lock`` (POSIX); the OS drops it if the process dies.
-
-    A POSIX record lock (``lockf``), not ``flock``: it belongs to this process only, so worker
-    processes forked from it (which inherit the file descriptor) do not keep the folder locked
-    after the study process was killed.
-    """
-    out.mkdir(parents=True, exist_ok=True)
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - not POSIX: no lock
-        yield
-        return
-    fh = open(out / LOCK_FILE, "a+")  # noqa: SIM115 - held for the whole study
-    try:
-        try:
-            fcntl.lockf(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            fh.seek(0)
-            holder = fh.read().strip() or "?"
-            raise UsageError(
-                f"{out} is in use by another 'mpsbench study run' (pid {holder}); "
-                "wait for it or pick another --out"
-            ) from None
-        fh.seek(0)
-        fh.truncate()
-        fh.write(str(os.getpid()))
-        fh.flush()
-        yield
-    finally:
-        fh.close()
-
-
 def write_plan(out: Path, spec: Any, tasks: list[Any]) -> None:
     from mpsbench.results.records import atomic_write_text
 
@@ -132,7 +100,7 @@ def write_plan(out: Path, spec: Any, tasks: list[Any]) -> None:
         "n_runs": len(tasks),
         "runs": [
             {"case": t.case, "solver": t.solver, "tier": t.tier, "run_id": t.run_id,
-             "params": t.params}
+             "run_hash": t.run_hash, "params": t.params}
             for t in tasks
         ],
     }
@@ -145,11 +113,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     from mpsbench.cases.checks import gates
     from mpsbench.results.case_report import plain_check_lines, write_case_outputs
     from mpsbench.results.executors import ExecutorError, make_executor
+    from mpsbench.results.guard import MAX_RUNS, guard_tasks
     from mpsbench.results.records import atomic_write_text
     from mpsbench.results.study_spec import check_tolerances, load_study
     from mpsbench.results.sweep import print_progress, run_tasks
 
-    spec = load_study(args.study)
+    spec = load_study(args.study, max_runs=None if args.yes else MAX_RUNS)
     jobs = args.jobs if args.jobs is not None else (spec.jobs or 1)
     if jobs < 1:
         raise UsageError(f"--jobs = {jobs} is not allowed: an integer >= 1")
@@ -164,6 +133,8 @@ def cmd_run(args: argparse.Namespace) -> int:
     summary = ", ".join(f"{name} {n}" for name, n in by_case.items())
     print(f"study {spec.name}: {len(tasks)} runs ({summary}; tier {spec.tier}; solvers "
           f"{', '.join(spec.solvers)}) -> {out}", file=sys.stderr)
+    # workers of a remote scheduler have their own memory: only this machine's is known
+    guard_tasks(tasks, jobs=jobs, yes=args.yes, check_memory=not scheduler)
     if args.dry_run:
         for t in tasks:
             print(t.run_id)
@@ -175,7 +146,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     def retry(record: dict[str, Any]) -> bool:
         return bool(args.retry_failed) and record.get("status") == "failed"
 
-    with study_lock(out):
+    with folder_lock(out, f"mpsbench study run {args.study}"):
         write_plan(out, spec, tasks)
         try:
             executor = make_executor(executor_name, jobs=jobs, scheduler=scheduler)
@@ -228,43 +199,45 @@ def _count(records: list[dict[str, Any]]) -> dict[str, int]:
 def study_status(out: Path, tasks: list[dict[str, Any]] | None = None) -> dict[str, Any]:
     """Runs of a study folder by state.
 
-    ``tasks`` (dicts with case and run_id) defaults to ``OUT/plan.json``; without a plan only
-    the records found are counted and ``pending`` is None.
+    ``tasks`` (dicts with case, run_id and, from newer plans, run_hash) defaults to
+    ``OUT/plan.json``; without a plan only the records found are counted and ``pending`` is
+    None.  A planned run is done when a record of the same run (by ``run_hash``, else by file
+    name) is in its case folder.
     """
     from mpsbench.results.records import load_record
+    from mpsbench.results.sweep import stored_runs
 
     if tasks is None:
         plan_path = out / PLAN_FILE
         if plan_path.is_file():
-            try:
-                tasks = json.loads(plan_path.read_text())["runs"]
-            except (OSError, ValueError, KeyError, TypeError):
-                raise UsageError(f"{plan_path} is unreadable: run the study again") from None
+            tasks = _read_plan(plan_path)
     state: dict[str, list[dict[str, Any]]] = {
         "completed": [], "diverged": [], "failed": [], "pending": []
     }
-    planned_ids: set[str] = set()
     record_files = sorted(out.glob("runs/*.json")) + sorted(out.glob("*/runs/*.json"))
     temp_files = len(list(out.glob("runs/.*.tmp")) + list(out.glob("*/runs/.*.tmp")))
-    unreadable = 0
+    unreadable = sum(load_record(path) is None for path in record_files)
+    matched: set[Path] = set()
     if tasks is not None:
+        stored = {case: stored_runs(out / case) for case in {t["case"] for t in tasks}}
         for t in tasks:
-            planned_ids.add(t["run_id"])
+            found = stored[t["case"]].get(t.get("run_hash") or "", [])
             path = out / t["case"] / "runs" / f"{t['run_id']}.json"
-            rec = load_record(path)
+            rec = found[0][1] if found else load_record(path)
             if rec is None:
-                unreadable += path.exists()
                 state["pending"].append({"run_id": t["run_id"], "case": t["case"]})
             else:
+                matched.update(p for p, _ in found)
+                matched.add(path)
                 _file(state, rec)
     extra = 0
     for path in record_files:
-        if path.stem in planned_ids:
+        if path in matched:
             continue
         rec = load_record(path)
         if rec is None:
-            unreadable += 1
-        elif tasks is None:
+            continue
+        if tasks is None:
             _file(state, rec)
         else:
             extra += 1
@@ -284,6 +257,36 @@ def study_status(out: Path, tasks: list[dict[str, Any]] | None = None) -> dict[s
     }
 
 
+def _read_plan(path: Path) -> list[dict[str, Any]]:
+    """The planned runs of a plan.json; UsageError naming the file and the run when it is
+    unreadable or a run lacks its case or run id."""
+    from mpsbench.registry import name_problem
+    from mpsbench.results.records import run_id_problem
+
+    again = "run the study again to rewrite it"
+    try:
+        runs = json.loads(path.read_bytes().decode("utf-8"))["runs"]
+    except (OSError, ValueError, KeyError, TypeError, RecursionError):
+        raise UsageError(f"{path} is unreadable or truncated: {again}") from None
+    if not isinstance(runs, list):
+        raise UsageError(f"{path}: 'runs' is not a list: {again}")
+    for k, run in enumerate(runs):
+        if not isinstance(run, dict):
+            raise UsageError(f"{path}: run {k} is not an object: {again}")
+        for key in ("case", "run_id"):
+            if key not in run:
+                raise UsageError(f"{path}: run {k} lacks {key!r}: {again}")
+        if name_problem(run["case"]) is not None:
+            raise UsageError(f"{path}: run {k}: case = {str(run['case'])[:80]!r} is not "
+                             f"allowed: {name_problem(run['case'])}")
+        problem = run_id_problem(run["run_id"])
+        if problem is not None:
+            raise UsageError(f"{path}: run {k}: {problem}")
+        if not isinstance(run.get("run_hash", ""), str):
+            raise UsageError(f"{path}: run {k}: run_hash is not a string: {again}")
+    return runs
+
+
 def _file(state: dict[str, list[dict[str, Any]]], rec: dict[str, Any]) -> None:
     status = rec.get("status")
     key = status if status in ("completed", "diverged") else "failed"
@@ -299,7 +302,8 @@ def cmd_status(args: argparse.Namespace) -> int:
 
         spec = load_study(target)
         out = Path(args.out) if args.out else spec.default_out()
-        tasks = [{"case": t.case, "run_id": t.run_id} for t in spec.tasks()]
+        tasks = [{"case": t.case, "run_id": t.run_id, "run_hash": t.run_hash}
+                 for t in spec.tasks()]
     elif target.is_dir():
         out = target
     else:

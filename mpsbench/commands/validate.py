@@ -7,7 +7,8 @@ every ``--solver``, runs them through one pool with one progress count, and writ
 folder described in :mod:`mpsbench.results.folder` (default ``reports/<YYYYmmdd-HHMM>-<tier>/``).
 
 Exit status: 0 when every case passes its gates, 1 when one fails (or could not be loaded or
-run), 2 on a usage error (unknown case, solver or tier, bad ``--set``).  The paper's claims are
+run), 2 on a usage error (unknown case, solver or tier, bad ``--set``, an output folder that
+cannot be written or is in use, a plan refused by the size guard).  The paper's claims are
 reported with their verdicts and do not change the exit status unless ``--strict-claims``
 (then a refuted claim exits 1 too).
 """
@@ -59,8 +60,9 @@ def register(sub: Any) -> None:
     )
     p.add_argument("case", help="case name (see 'mpsbench validate --list') or 'all'", nargs="?")
     p.add_argument("--list", action="store_true", help="list the registered cases and exit")
-    p.add_argument("--solver", action="append", default=None, metavar="NAME",
-                   help="solver backend (repeatable; default: reference)")
+    p.add_argument("--solver", action="append", default=None, metavar="SPEC",
+                   help="solver backend, NAME or NAME:key=value,... with its options (see "
+                   "'mpsbench solvers'), e.g. numba:threads=1 (repeatable; default: reference)")
     p.add_argument("--tier", default="quick", type=_tier, metavar="TIER",
                    help="smoke (seconds, for CI), quick (default, minutes) or paper (full grid)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE[,VALUE...]",
@@ -79,7 +81,28 @@ def register(sub: Any) -> None:
     p.add_argument("--junit-xml", default=None, metavar="PATH",
                    help="also write a JUnit XML report: one test case per run and per check "
                    "(docs/ci.md)")
+    add_run_safety_options(p)
     p.set_defaults(func=cmd_validate)
+
+
+# ---- resuming and the size guard (issue #19): --retry-failed, --yes
+def add_run_safety_options(p: Any) -> None:
+    p.add_argument("--retry-failed", action="store_true",
+                   help="re-run the runs recorded failed, diverged or crashed (and only those) "
+                   "among those whose record exists")
+    p.add_argument("--yes", action="store_true",
+                   help="run a plan above the size guard's thresholds (more than 5,000 runs, "
+                   "or a run of more than 1,000,000 particles)")
+
+
+def retry_rule(args: argparse.Namespace) -> Any:
+    if not args.retry_failed:
+        return None
+    return lambda record: record.get("status") != "completed"
+
+
+def lock_command(args: argparse.Namespace) -> str:
+    return f"mpsbench validate {args.case} --tier {args.tier}"
 
 
 def parse_overrides(case: Case, items: list[str]) -> dict[str, Sequence[Any]]:
@@ -109,7 +132,7 @@ def default_all_out(tier: str, root: Path = Path("reports")) -> Path:
 
 def cmd_validate(args: argparse.Namespace) -> int:
     from mpsbench.cases import CASES, case_order, get_case
-    from mpsbench.run.protocol import SOLVERS
+    from mpsbench.results.records import canonical_solver
 
     if args.list:
         for name in case_order(CASES.names()):
@@ -123,9 +146,8 @@ def cmd_validate(args: argparse.Namespace) -> int:
         raise UsageError("give a case name or 'all' (see --list)")
     if args.jobs is not None and args.jobs < 1:
         raise UsageError(f"--jobs = {args.jobs} is not allowed: an integer >= 1")
-    solvers = list(dict.fromkeys(args.solver or ["reference"]))
-    for s in solvers:
-        SOLVERS.get(s)  # unknown or broken solver: usage error before any run
+    # unknown or broken solver, unknown option or bad value: usage error before any run
+    solvers = list(dict.fromkeys(canonical_solver(s) for s in args.solver or ["reference"]))
     if args.case == "all":
         if args.set:
             raise UsageError("--set applies to one case; run 'mpsbench validate CASE --set ...'")
@@ -149,26 +171,33 @@ def _manifest(args: argparse.Namespace, solvers: list[str], jobs: int) -> dict[s
 def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
     from mpsbench.cases import get_case
     from mpsbench.results.folder import MANIFEST, write_top_level
+    from mpsbench.results.guard import check_run_count, grid_size, guard_tasks
+    from mpsbench.results.lock import folder_lock
     from mpsbench.results.records import atomic_write_text
-    from mpsbench.results.sections import render_case
+    from mpsbench.results.sections import safe_render_case
     from mpsbench.results.sweep import plan, print_progress, run_tasks
 
     case = get_case(args.case)
     overrides = parse_overrides(case, args.set)
+    check_run_count(grid_size(case, args.tier, overrides) * len(solvers), args.yes,
+                    f"{case.name} at tier {args.tier}")
     tasks = plan(case, solvers, args.tier, overrides)
     out = Path(args.out) if args.out else default_out(args.case, args.tier)
     jobs = args.jobs or 1
+    guard_tasks(tasks, jobs=jobs, yes=args.yes)
     manifest = _manifest(args, solvers, jobs)
     t0 = time.perf_counter()
-    print(f"{case.name}: {len(tasks)} runs -> {out}", file=sys.stderr)
-    records = run_tasks(tasks, out, jobs=jobs, force=args.force, progress=print_progress())
-    section = render_case(case, records, out)
-    manifest.update(wall_s=round(time.perf_counter() - t0, 1),
-                    cases=[{"name": case.name, "error": section.error}])
-    atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
-    ok = write_top_level(out, [section], manifest, [p.name for p in case.params],
-                         write_results=False)
-    ci_outputs(args, [section], manifest)
+    with folder_lock(out, lock_command(args)):
+        print(f"{case.name}: {len(tasks)} runs -> {out}", file=sys.stderr)
+        records = run_tasks(tasks, out, jobs=jobs, force=args.force, progress=print_progress(),
+                            retry=retry_rule(args))
+        section = safe_render_case(case, records, out)
+        manifest.update(wall_s=round(time.perf_counter() - t0, 1),
+                        cases=[{"name": case.name, "error": section.error}])
+        atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
+        ok = write_top_level(out, [section], manifest, [p.name for p in case.params],
+                             write_results=False)
+        ci_outputs(args, [section], manifest)
     print_verdicts([section])
     note = _claims_note([section], args.strict_claims)
     if note:
@@ -180,10 +209,10 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
 
 def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
     from mpsbench.cases import CASES, case_order, get_case
-    from mpsbench.results.folder import MANIFEST, write_top_level
-    from mpsbench.results.records import atomic_write_text
-    from mpsbench.results.sections import CaseSection, safe_render_case, verdict
-    from mpsbench.results.sweep import plan, print_progress, run_tasks
+    from mpsbench.results.guard import check_run_count, guard_tasks
+    from mpsbench.results.lock import folder_lock
+    from mpsbench.results.sections import CaseSection
+    from mpsbench.results.sweep import plan
 
     out = Path(args.out) if args.out else default_all_out(args.tier)
     jobs = args.jobs or max(1, min(os.cpu_count() or 1, MAX_AUTO_JOBS))
@@ -193,6 +222,8 @@ def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
     broken: dict[str, CaseSection] = {}
     tasks: list[Task] = []
     names = case_order(CASES.names())
+    check_run_count(sum(_grid_size(name, args.tier) for name in names) * len(solvers), args.yes,
+                    f"validate all at tier {args.tier}")
     for name in names:
         try:
             case = get_case(name)
@@ -204,15 +235,41 @@ def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
         cases.append(case)
         tasks += case_tasks
         print(f"{name}: {len(case_tasks)} runs", file=sys.stderr)
-    print(f"validate all: {len(tasks)} runs of {len(cases)} cases x {len(solvers)} solver(s), "
-          f"tier {args.tier}, {jobs} job(s) -> {out}", file=sys.stderr)
-    out.mkdir(parents=True, exist_ok=True)
+    guard_tasks(tasks, jobs=jobs, yes=args.yes)
+    with folder_lock(out, lock_command(args)):
+        return _validate_all_locked(args, out, jobs, manifest, t0, names, cases, broken, tasks)
+
+
+def _grid_size(name: str, tier: str) -> int:
+    from mpsbench.cases import get_case
+    from mpsbench.results.guard import grid_size
+
+    try:
+        return grid_size(get_case(name), tier)
+    except Exception:  # noqa: BLE001 - a broken case is reported (and planned) below
+        return 0
+
+
+def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
+                         manifest: dict[str, Any], t0: float, names: list[str],
+                         cases: list[Case], broken: dict[str, CaseSection],
+                         tasks: list[Task]) -> int:
+    from mpsbench.cases import get_case
+    from mpsbench.results.folder import MANIFEST, write_top_level
+    from mpsbench.results.records import atomic_write_text
+    from mpsbench.results.sections import safe_render_case, verdict
+    from mpsbench.results.sweep import print_progress, run_tasks
+
+    print(f"validate all: {len(tasks)} runs of {len(cases)} cases x "
+          f"{len(manifest['solvers'])} solver(s), tier {args.tier}, {jobs} job(s) -> {out}",
+          file=sys.stderr)
     manifest["cases"] = [{"name": n, "error": broken[n].error if n in broken else ""}
                          for n in names]
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
     folder = {c.name: out / c.name for c in cases}
     records = run_tasks(heavy_first(tasks), out, jobs=jobs, force=args.force,
-                        progress=print_progress(), task_dir=lambda t: folder[t.case])
+                        progress=print_progress(), task_dir=lambda t: folder[t.case],
+                        retry=retry_rule(args))
     sections: list[CaseSection] = []
     for name in names:
         if name in broken:

@@ -85,7 +85,8 @@ class Models:
     n0_from: Literal["initial", "lattice"] = "initial"
 
     def __post_init__(self) -> None:
-        from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+        from mpsbench.physics.gradients import GRADIENTS
+        from mpsbench.physics.laplacians import LAPLACIANS
         from mpsbench.physics.weights import WEIGHTS
 
         _registered("Models", "weight", self.weight, WEIGHTS)
@@ -192,14 +193,25 @@ class TimeStepping:
         ``umax``: largest particle speed [m/s]; ``rho_lap``: the Gershgorin bound of the
         Laplacian's spectral radius [1/m^2] (0 when unknown: no viscous limit).
         """
+        return self.limit(physics, l0, umax, rho_lap)[0]
+
+    def limit(
+        self, physics: DiffusionPhysics | FlowPhysics, l0: float, umax: float, rho_lap: float
+    ) -> tuple[float, str]:
+        """:meth:`stable_dt` and which limit sets it: ``fixed``, ``cfl`` (sound speed and flow
+        speed), ``viscous`` (flow) or ``diffusion``."""
         if self.dt is not None:
-            return self.dt
+            return self.dt, "fixed"
         if isinstance(physics, DiffusionPhysics):
-            return self.c_nu * 2.0 / (physics.kappa * rho_lap) if rho_lap > 0 else math.inf
+            dt = self.c_nu * 2.0 / (physics.kappa * rho_lap) if rho_lap > 0 else math.inf
+            return dt, "diffusion"
         dt = self.cfl * l0 / (physics.c0 + umax)
+        which = "cfl"
         if physics.nu > 0 and rho_lap > 0:
-            dt = min(dt, self.c_nu * 2.0 / (physics.nu * rho_lap))
-        return float(dt)
+            viscous = self.c_nu * 2.0 / (physics.nu * rho_lap)
+            if viscous < dt:
+                dt, which = viscous, "viscous"
+        return float(dt), which
 
 
 @dataclass(frozen=True)

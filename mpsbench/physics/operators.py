@@ -1,16 +1,15 @@
-"""MPS operators over a pair list: number density, n0 and lambda, gradients, Laplacians, divergence.
+"""MPS operators over a pair list: number density, n0 and lambda, the original gradient and
+divergence, p_min, and the evaluation of a model's pair formula; the stabilization.
 
 Every operator takes precomputed per-pair quantities so one neighbour list (built at the
 largest radius) serves all radii; a weight evaluated at a smaller r_e is simply zero beyond it.
-Formulas and their provenance: docs/method.md sections 1-3 (D_s = ``dim`` = 2).
-
-Registries: ``LAPLACIANS`` (``koshizuka-oka``, ``khayyer-gotoh``, ``xu-jin``,
-``xu-jin-analytic``) and ``GRADIENTS`` (``pgm1``, ``pgm2``, ``pgm3``).  Adding a Laplacian is one
-subclass of :class:`LaplacianModel` that returns its pair coefficients, plus one registration.
+Formulas and their provenance: docs/method.md sections 1-5 (D_s = ``dim`` = 2).  The models with
+registries live beside this module: :mod:`.weights`, :mod:`.laplacians`, :mod:`.gradients`.
 """
 
 from __future__ import annotations
 
+import dis
 from collections.abc import Callable
 from typing import Any
 
@@ -21,9 +20,11 @@ from numpy.typing import NDArray
 from mpsbench.physics.neighbours import PairList, build_pairs
 from mpsbench.physics.particles import Box
 from mpsbench.physics.weights import WeightFunction, get_weight, within_support
-from mpsbench.registry import Registry
 
 FloatArray = NDArray[np.float64]
+
+DIM = 2
+"""D_s: the dimension (the project is 2-D; the pair formulas are written in their 2-D form)."""
 
 
 # --------------------------------------------------------------------------- number density
@@ -125,162 +126,66 @@ def neighbour_min(pairs: PairList, p: FloatArray, w: FloatArray) -> FloatArray:
     return pmin
 
 
-def _pair_pressure_force(
-    pairs: PairList, pij: FloatArray, w: FloatArray, n0: float, dim: int
-) -> FloatArray:
-    """(D/n0) sum_j P_ij r_ij W / r^2 for a pair value that is symmetric in (i, j)."""
-    coef = pij * _w_over_r2(w, pairs.r)
-    # r_ij flips sign for j, P_ij does not: the sum is antisymmetric.
-    return (dim / n0) * pairs.sum_vec_antisym(coef[:, None] * pairs.dx)
-
-
-def pgm1(pairs: PairList, p: FloatArray, w: FloatArray, n0: float, dim: int = 2) -> FloatArray:
-    """PGM1 (Eq. 6): (D/n0) sum_j (p_j - pmin_i) r_ij W_ij / r_ij^2."""
-    pmin = neighbour_min(pairs, p, w)
-    c = _w_over_r2(w, pairs.r)
-    ci = (p[pairs.j] - pmin[pairs.i]) * c  # term of i from j, along +dx
-    cj = (p[pairs.i] - pmin[pairs.j]) * c  # term of j from i, along -dx
-    out = np.empty((pairs.n, 2))
-    for ax in range(2):
-        d = pairs.dx[:, ax]
-        out[:, ax] = np.bincount(pairs.i, ci * d, pairs.n) - np.bincount(pairs.j, cj * d, pairs.n)
-    return (dim / n0) * out
-
-
-def pgm2(pairs: PairList, p: FloatArray, w: FloatArray, n0: float, dim: int = 2) -> FloatArray:
-    """PGM2 (Khayyer & Gotoh 2008): (D/n0) sum_j [(p_i+p_j) - (pmin_i+pmin_j)] r_ij W / r^2."""
-    pmin = neighbour_min(pairs, p, w)
-    pij = (p[pairs.i] + p[pairs.j]) - (pmin[pairs.i] + pmin[pairs.j])
-    return _pair_pressure_force(pairs, pij, w, n0, dim)
-
-
-def pgm3(pairs: PairList, p: FloatArray, w: FloatArray, n0: float, dim: int = 2) -> FloatArray:
-    """PGM3 (Toyota et al., symmetric form): (D/n0) sum_j (p_i + p_j) r_ij W / r^2."""
-    return _pair_pressure_force(pairs, p[pairs.i] + p[pairs.j], w, n0, dim)
+def mps_radial(r: Any, w: Any) -> Any:
+    """W_ij / r_ij^2: the radial weight of the original gradient (Eq. 5), the divergence and the
+    pressure gradients (a formula in plain arithmetic, compiled by the numba backend too)."""
+    return w / (r * r)
 
 
 def _w_over_r2(w: FloatArray, r: FloatArray) -> FloatArray:
+    """:func:`mps_radial` per pair, 0 where W = 0 (no division for pairs beyond the support)."""
     out = np.zeros_like(w)
     nz = w != 0
-    out[nz] = w[nz] / r[nz] ** 2
+    out[nz] = mps_radial(r[nz], w[nz])
     return out
 
 
-GradientFn = Callable[[PairList, FloatArray, FloatArray, float, int], FloatArray]
-
-GRADIENTS: Registry[GradientFn] = Registry("pressure gradient", group="mpsbench.gradients")
-GRADIENTS.register(
-    "pgm1",
-    pgm1,
-    description="(p_j - pmin_i) with artificial repulsion",
-    source="Xu & Jin 2016 Eq. 6",
-)
-GRADIENTS.register(
-    "pgm2",
-    pgm2,
-    description="(p_i + p_j) - (pmin_i + pmin_j), momentum conserving",
-    source="Khayyer & Gotoh 2008 (CMPS)",
-)
-GRADIENTS.register(
-    "pgm3",
-    pgm3,
-    description="(p_i + p_j), symmetric, momentum conserving",
-    source="Toyota et al. (reconstructed symmetric form)",
-)
+# --------------------------------------------------------------------------- model formulas
+#
+# A model's formulas are static methods in plain arithmetic, evaluated here on arrays and
+# compiled by the numba backend; these helpers evaluate them on a pair list.
 
 
-# --------------------------------------------------------------------------- Laplacians
+def reads(fn: Callable[..., Any]) -> tuple[bool, ...]:
+    """Which positional parameters of ``fn`` its code reads (True when unsure).
 
-
-class LaplacianModel:
-    """A Laplacian of the form lap(phi)_i = sum_j c_ij (phi_j - phi_i) [- B_i . grad(phi)_i].
-
-    Subclasses implement :meth:`coefficients`; a model whose ``gradient_correction`` is true
-    also subtracts (sum_j c_ij r_ij) . grad(phi)_i, with grad the original gradient (Eq. 5)
-    at the same radius.
+    The vectorised evaluation skips W, W' or W'' when a pair formula does not use them (each
+    is a masked evaluation over every pair); numba drops unused values by itself.
     """
+    code = getattr(fn, "__code__", None)
+    if code is None:
+        return (True,) * 8
+    names = code.co_varnames[: code.co_argcount]
+    used: set[str] = set(code.co_cellvars)  # captured by an inner function: assume read
+    for ins in dis.get_instructions(code):
+        if ins.opname.startswith("LOAD_FAST") or ins.opname.startswith("DELETE_FAST"):
+            arg = ins.argval
+            used.update(arg if isinstance(arg, tuple) else (arg,))
+    return tuple(name in used for name in names)
 
-    name: str = ""
-    description: str = ""
-    source: str = ""
-    gradient_correction: bool = False
 
-    def coefficients(
-        self,
-        pairs: PairList,
-        weight: WeightFunction,
-        re: float,
-        n0: float,
-        lam: float,
-        dim: int = 2,
-    ) -> FloatArray:
-        """Per-pair coefficients c_ij (symmetric in i, j), aligned with ``pairs``."""
-        raise NotImplementedError
+def pair_formula(
+    fn: Callable[..., Any], weight: WeightFunction, r: FloatArray, re: float,
+    *extra: FloatArray,
+) -> FloatArray:
+    """``fn(r, W, W', W'', *extra)`` per pair inside the closed support of ``re``, 0 beyond it.
 
-    def apply(
-        self,
-        pairs: PairList,
-        phi: FloatArray,
-        weight: WeightFunction,
-        re: float,
-        n0: float,
-        lam: float,
-        dim: int = 2,
-        coef: FloatArray | None = None,
-    ) -> FloatArray:
-        """lap(phi); ``phi`` may be (n,) or (n, k) (each column separately)."""
-        c = self.coefficients(pairs, weight, re, n0, lam, dim) if coef is None else coef
-        dphi = pairs.diff(phi)
-        if dphi.ndim == 1:
-            out = pairs.sum_antisym(c * dphi)
-        else:
-            out = np.column_stack([pairs.sum_antisym(c * dphi[:, k]) for k in range(dphi.shape[1])])
-        if self.gradient_correction:
-            out = out - self._correction(pairs, phi, weight, re, n0, c, dim)
+    W, W', W'' are evaluated at min(r, re) (the closed support, :mod:`.weights`); ``fn`` gets the
+    distance itself, and each ``extra`` array gathered at the pairs inside.
+    """
+    inside = np.flatnonzero(within_support(r, re))
+    out = np.zeros(len(r))
+    if len(inside) == 0:
         return out
-
-    def _correction(
-        self, pairs: PairList, phi: FloatArray, weight: WeightFunction, re: float, n0: float,
-        c: FloatArray, dim: int,
-    ) -> FloatArray:
-        # B_i = sum_j c_ij r_ij: c is symmetric, r_ij flips sign for j -> antisymmetric sum.
-        b = pairs.sum_vec_antisym(c[:, None] * pairs.dx)
-        w = weight.w(pairs.r, re)
-        if phi.ndim == 1:
-            g = gradient(pairs, phi, w, n0, dim)
-            return (b * g).sum(axis=1)
-        cols = [
-            (b * gradient(pairs, phi[:, k], w, n0, dim)).sum(axis=1) for k in range(phi.shape[1])
-        ]
-        return np.column_stack(cols)
-
-    def matrix(
-        self,
-        pairs: PairList,
-        weight: WeightFunction,
-        re: float,
-        n0: float,
-        lam: float,
-        dim: int = 2,
-    ) -> sp.csr_matrix:
-        """The operator as a sparse (n, n) matrix L with lap(phi) = L @ phi."""
-        n = pairs.n
-        c = self.coefficients(pairs, weight, re, n0, lam, dim)
-        rows = np.concatenate([pairs.i, pairs.j])
-        cols = np.concatenate([pairs.j, pairs.i])
-        vals = np.concatenate([c, c])
-        off = sp.coo_matrix((vals, (rows, cols)), shape=(n, n)).tocsr()
-        mat = off - sp.diags(np.asarray(off.sum(axis=1)).ravel())
-        if self.gradient_correction:
-            b = pairs.sum_vec_antisym(c[:, None] * pairs.dx)
-            w = weight.w(pairs.r, re)
-            for ax in range(2):
-                g = gradient_matrix(pairs, w, n0, ax, dim)
-                mat = mat - sp.diags(b[:, ax]) @ g
-        return sp.csr_matrix(mat)
-
-    def __repr__(self) -> str:
-        return f"<LaplacianModel {self.name}>"
+    ri = r[inside]
+    rc = np.minimum(ri, re)
+    use = reads(fn) + (True,) * 8
+    values = [
+        formula(rc, re) if use[k + 1] else 0.0
+        for k, formula in enumerate((weight.w_inside, weight.dw_inside, weight.d2w_inside))
+    ]
+    out[inside] = fn(ri, *values, *(e[inside] for e in extra))
+    return out
 
 
 def gradient_matrix(
@@ -297,130 +202,24 @@ def gradient_matrix(
     return sp.csr_matrix(off - sp.diags(np.asarray(off.sum(axis=1)).ravel()))
 
 
-class KoshizukaOka(LaplacianModel):
-    """LM1: (2 D / (lambda n0)) sum_j phi_ij W_ij."""
-
-    name = "koshizuka-oka"
-    description = "LM1: (2D/(lambda n0)) sum phi_ij W_ij, the original MPS Laplacian"
-    source = "Koshizuka & Oka 1996"
-
-    def coefficients(
-        self,
-        pairs: PairList,
-        weight: WeightFunction,
-        re: float,
-        n0: float,
-        lam: float,
-        dim: int = 2,
-    ) -> FloatArray:
-        return (2.0 * dim / (lam * n0)) * weight.w(pairs.r, re)
+# --------------------------------------------------------------------------- stabilization
 
 
-class KhayyerGotoh(LaplacianModel):
-    """LM2: (1/n0) sum_j phi_ij (W'' - W'/r) (2-D form)."""
+class Stabilization:
+    """The velocity stabilization (docs/method.md section 5):
+    du_i = prefactor * sum_j pair(r, w, dw, d2w) (u_j - u_i) for inner fluid particles, with
+    pair = W' and prefactor = -alpha_s l0 / n0 (W' at r_e, the n0 of the number density)."""
 
-    name = "khayyer-gotoh"
-    description = "LM2: (1/n0) sum phi_ij (W'' - W'/r), from the divergence of the SPH gradient"
-    source = "Khayyer & Gotoh 2010"
+    @staticmethod
+    def pair(r: Any, w: Any, dw: Any, d2w: Any) -> Any:
+        return dw
 
-    def coefficients(
-        self,
-        pairs: PairList,
-        weight: WeightFunction,
-        re: float,
-        n0: float,
-        lam: float,
-        dim: int = 2,
-    ) -> FloatArray:
-        r = pairs.r
-        return (weight.d2w(r, re) - (dim - 1) * weight.dw(r, re) / r) / n0
+    @staticmethod
+    def prefactor(alpha_s: float, l0: float, n0: float) -> float:
+        return -alpha_s * l0 / n0
 
 
-class XuJin(LaplacianModel):
-    """LM3 (default reading): (2D/n0) sum_j [phi_ij - grad(phi)_i . r_ij] W_ij / r_ij^2.
-
-    Without gradient correction (default) the gradient term is dropped, which is exact on a
-    symmetric neighbourhood.
-    """
-
-    name = "xu-jin"
-    description = "LM3: (2D/n0) sum phi_ij W/r^2 from the divergence of the MPS gradient"
-    source = "Xu & Jin 2016 (reconstructed: divergence of Eq. 5, Taylor closure)"
-
-    def __init__(self, gradient_correction: bool = False) -> None:
-        self.gradient_correction = bool(gradient_correction)
-
-    def coefficients(
-        self,
-        pairs: PairList,
-        weight: WeightFunction,
-        re: float,
-        n0: float,
-        lam: float,
-        dim: int = 2,
-    ) -> FloatArray:
-        return (2.0 * dim / n0) * _w_over_r2(weight.w(pairs.r, re), pairs.r)
-
-
-class XuJinAnalytic(LaplacianModel):
-    """LM3 (variant): (D/n0) sum_j phi_ij [-W'/r - (D-2) W/r^2]."""
-
-    name = "xu-jin-analytic"
-    description = "LM3 variant: (D/n0) sum phi_ij [-W'/r - (D-2) W/r^2], analytic divergence"
-    source = "Xu & Jin 2016 (reconstructed: analytic divergence of Eq. 5)"
-
-    def coefficients(
-        self,
-        pairs: PairList,
-        weight: WeightFunction,
-        re: float,
-        n0: float,
-        lam: float,
-        dim: int = 2,
-    ) -> FloatArray:
-        r = pairs.r
-        c = -weight.dw(r, re) / r
-        if dim != 2:
-            c = c - (dim - 2) * _w_over_r2(weight.w(r, re), r)
-        return (dim / n0) * c
-
-
-def _validate_laplacian(obj: Any) -> None:
-    inst = obj() if isinstance(obj, type) else obj
-    if not callable(getattr(inst, "coefficients", None)):
-        raise TypeError("Laplacian model has no coefficients() method")
-
-
-LAPLACIANS: Registry[Any] = Registry(
-    "Laplacian model", group="mpsbench.laplacians", validate=_validate_laplacian
-)
-for _cls in (KoshizukaOka, KhayyerGotoh, XuJin, XuJinAnalytic):
-    LAPLACIANS.register(_cls.name, _cls, description=_cls.description, source=_cls.source)
-
-
-def get_laplacian(name_or_obj: str | LaplacianModel, **options: Any) -> LaplacianModel:
-    """Instantiate a registered Laplacian by name; options go to its constructor.
-
-    ``gradient_correction=True`` is accepted only by models that support it (``xu-jin``).
-    """
-    if isinstance(name_or_obj, LaplacianModel):
-        return name_or_obj
-    obj = LAPLACIANS.get(name_or_obj)
-    if not isinstance(obj, type):
-        if options:
-            raise ValueError(f"Laplacian {name_or_obj!r} takes no options, got {sorted(options)}")
-        return obj
-    options = {k: v for k, v in options.items() if not (k == "gradient_correction" and not v)}
-    try:
-        return obj(**options)
-    except TypeError:
-        raise ValueError(
-            f"Laplacian {name_or_obj!r} does not accept options {sorted(options)}"
-        ) from None
-
-
-def get_gradient(name: str | GradientFn) -> GradientFn:
-    return GRADIENTS.get(name) if isinstance(name, str) else name
+STABILIZATION = Stabilization()
 
 
 def lattice_pairs(n_side: int, l0: float = 1.0) -> tuple[FloatArray, Box]:
@@ -432,18 +231,17 @@ def lattice_pairs(n_side: int, l0: float = 1.0) -> tuple[FloatArray, Box]:
 
 
 __all__ = [
-    "GRADIENTS",
-    "LAPLACIANS",
-    "LaplacianModel",
+    "DIM",
+    "STABILIZATION",
+    "Stabilization",
     "build_pairs",
     "divergence",
-    "get_gradient",
-    "get_laplacian",
     "gradient",
+    "gradient_matrix",
     "lattice_constants",
+    "mps_radial",
+    "neighbour_min",
     "number_density",
+    "pair_formula",
     "particle_constants",
-    "pgm1",
-    "pgm2",
-    "pgm3",
 ]

@@ -1,8 +1,12 @@
 """Weighting functions W(r, r_e) of MPS and their radial derivatives.
 
-Adding a weighting function is one subclass of :class:`WeightFunction` plus one
-``WEIGHTS.register`` call (or an entry point in the ``mpsbench.physics.weights`` group).
-All functions are vectorised over ``r`` and return 0 outside the support ``r > r_e``.
+A weighting function is one subclass of :class:`WeightFunction` plus one ``WEIGHTS.register``
+call (or an entry point in the ``mpsbench.weights`` group).  The subclass writes W, W' and W''
+for 0 < r <= r_e once, as static methods of ``(r, re)`` in plain arithmetic (numpy ufuncs that
+numba also compiles, such as ``np.exp``, are fine too): numpy evaluates the same code on arrays
+(the vectorised, masked :meth:`WeightFunction.w` / ``dw`` / ``d2w`` below, which the reference
+backend uses) and the numba backend compiles it into its kernels.  Every backend therefore uses
+the one definition, and a plugin's weight runs on all of them.
 
 The support is closed (docs/method.md: sums run over r_ij <= r_e) and, so that it stays closed under
 rounding, a distance up to ``r_e (1 + SUPPORT_RTOL)`` counts as ``r_e``.  On a square lattice
@@ -14,6 +18,8 @@ coordinates, and lose the symmetry of the stencil.  The neighbour search uses th
 
 from __future__ import annotations
 
+import inspect
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -26,6 +32,9 @@ Array = NDArray[np.float64]
 SUPPORT_RTOL = 1e-10
 """Relative slack of the closed support r <= r_e (see the module docstring)."""
 
+FORMULAS = ("w_inside", "dw_inside", "d2w_inside")
+"""The static methods a weighting function defines: W, W', W'' of (r, re) for 0 < r <= re."""
+
 
 def within_support(r: ArrayLike, re: float) -> NDArray[np.bool_]:
     """Mask of distances inside the closed support, ``r <= r_e (1 + SUPPORT_RTOL)``."""
@@ -33,41 +42,50 @@ def within_support(r: ArrayLike, re: float) -> NDArray[np.bool_]:
 
 
 class WeightFunction:
-    """Base class: override :meth:`_w`, :meth:`_dw`, :meth:`_d2w` for 0 < r <= r_e."""
+    """Base class: override the static methods :meth:`w_inside`, :meth:`dw_inside` and
+    :meth:`d2w_inside` (the formulas for 0 < r <= r_e, see the module docstring)."""
 
     name: str = ""
     description: str = ""
     source: str = ""
 
+    @staticmethod
+    def w_inside(r: Any, re: float) -> Any:
+        """W(r) for 0 < r <= re."""
+        raise NotImplementedError
+
+    @staticmethod
+    def dw_inside(r: Any, re: float) -> Any:
+        """dW/dr for 0 < r <= re."""
+        raise NotImplementedError
+
+    @staticmethod
+    def d2w_inside(r: Any, re: float) -> Any:
+        """d2W/dr2 for 0 < r <= re."""
+        raise NotImplementedError
+
     def w(self, r: ArrayLike, re: float) -> Array:
-        return self._masked(self._w, r, re)
+        return _masked(self.w_inside, r, re)
 
     def dw(self, r: ArrayLike, re: float) -> Array:
-        return self._masked(self._dw, r, re)
+        return _masked(self.dw_inside, r, re)
 
     def d2w(self, r: ArrayLike, re: float) -> Array:
-        return self._masked(self._d2w, r, re)
-
-    def _masked(self, fn: Any, r: ArrayLike, re: float) -> Array:
-        r = np.asarray(r, dtype=float)
-        re = float(re)
-        inside = within_support(r, re)
-        out = np.zeros_like(r)
-        # a distance within rounding of r_e is evaluated at r_e exactly
-        out[inside] = fn(np.minimum(r[inside], re), re)
-        return out
-
-    def _w(self, r: Array, re: float) -> Array:
-        raise NotImplementedError
-
-    def _dw(self, r: Array, re: float) -> Array:
-        raise NotImplementedError
-
-    def _d2w(self, r: Array, re: float) -> Array:
-        raise NotImplementedError
+        return _masked(self.d2w_inside, r, re)
 
     def __repr__(self) -> str:
         return f"<WeightFunction {self.name}>"
+
+
+def _masked(fn: Callable[[Any, float], Any], r: ArrayLike, re: float) -> Array:
+    """``fn`` on the distances inside the closed support, 0 beyond it."""
+    r = np.asarray(r, dtype=float)
+    re = float(re)
+    inside = within_support(r, re)
+    out = np.zeros_like(r)
+    # a distance within rounding of r_e is evaluated at r_e exactly
+    out[inside] = fn(np.minimum(r[inside], re), re)
+    return out
 
 
 class WF1(WeightFunction):
@@ -77,13 +95,16 @@ class WF1(WeightFunction):
     description = "W = r_e/r - 1 (original MPS weight; singular at r = 0)"
     source = "Koshizuka & Oka 1996; Xu & Jin 2016 Eq. 2"
 
-    def _w(self, r: Array, re: float) -> Array:
+    @staticmethod
+    def w_inside(r: Any, re: float) -> Any:
         return re / r - 1.0
 
-    def _dw(self, r: Array, re: float) -> Array:
+    @staticmethod
+    def dw_inside(r: Any, re: float) -> Any:
         return -re / r**2
 
-    def _d2w(self, r: Array, re: float) -> Array:
+    @staticmethod
+    def d2w_inside(r: Any, re: float) -> Any:
         return 2.0 * re / r**3
 
 
@@ -94,21 +115,39 @@ class WF2(WeightFunction):
     description = "W = (1 - r/r_e)^3 (finite at r = 0)"
     source = "Shakibaeinia & Jin 2010; Xu & Jin 2016 Eq. 3"
 
-    def _w(self, r: Array, re: float) -> Array:
+    @staticmethod
+    def w_inside(r: Any, re: float) -> Any:
         return (1.0 - r / re) ** 3
 
-    def _dw(self, r: Array, re: float) -> Array:
+    @staticmethod
+    def dw_inside(r: Any, re: float) -> Any:
         return -(3.0 / re) * (1.0 - r / re) ** 2
 
-    def _d2w(self, r: Array, re: float) -> Array:
+    @staticmethod
+    def d2w_inside(r: Any, re: float) -> Any:
         return (6.0 / re**2) * (1.0 - r / re)
 
 
+def static_formula(cls: type, attr: str, args: str) -> str | None:
+    """Why ``cls.attr`` cannot serve as a compiled formula, or None when it can.
+
+    A formula is a static method: the numba backend compiles the function itself, so it must
+    not take ``self``.
+    """
+    raw = inspect.getattr_static(cls, attr, None)
+    if raw is None:
+        return f"has no {attr}({args})"
+    if isinstance(raw, staticmethod):
+        return None
+    return f"has {attr} as a method: make it a @staticmethod of ({args}) (numba compiles it)"
+
+
 def _validate_weight(obj: Any) -> None:
-    inst = obj() if isinstance(obj, type) else obj
-    for attr in ("w", "dw", "d2w"):
-        if not callable(getattr(inst, attr, None)):
-            raise TypeError(f"weighting function has no callable {attr}()")
+    cls = obj if isinstance(obj, type) else type(obj)
+    for attr in FORMULAS:
+        why = static_formula(cls, attr, "r, re")
+        if why is not None:
+            raise TypeError(f"weighting function {getattr(cls, 'name', cls.__name__)!r} {why}")
 
 
 WEIGHTS: Registry[WeightFunction] = Registry(

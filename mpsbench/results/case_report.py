@@ -12,11 +12,19 @@ Layout of a case folder::
 A case with refinement sets (``Case.refinements``) also gets the table
 ``numerical_uncertainty`` (one row per set: levels, convergence, order, u_num; docs/method.md
 section 9).
+
+Every file is written atomically (a temporary file renamed into place; figures are drawn into
+a scratch folder and renamed), and text from records is escaped in the Markdown files
+(:mod:`mpsbench.results.escape`).
 """
 
 from __future__ import annotations
 
+import html
 import json
+import os
+import shutil
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,6 +34,9 @@ import pandas as pd
 from mpsbench.cases import Case, CaseCheck
 from mpsbench.cases.checks import claims as claims_of
 from mpsbench.cases.checks import gates as gates_of
+from mpsbench.errors import InputFileError
+from mpsbench.results.escape import md_escape, md_frame
+from mpsbench.results.paths import component
 from mpsbench.results.records import COMMON_COLUMNS, atomic_write_text, load_arrays
 
 
@@ -43,7 +54,7 @@ def records_frame(records: list[dict[str, Any]], case: Case | None = None) -> pd
 def markdown_table(df: pd.DataFrame, floatfmt: str = ".4g") -> str:
     if df.empty:
         return "_(no data)_\n"
-    return str(df.to_markdown(floatfmt=floatfmt)) + "\n"
+    return str(md_frame(df).to_markdown(floatfmt=floatfmt)) + "\n"
 
 
 @dataclass
@@ -62,17 +73,12 @@ class Rendered:
     @classmethod
     def from_disk(cls, folder: Path, records: list[dict[str, Any]]) -> Rendered:
         """What an earlier render left in ``folder`` (used when the case's code is unavailable)."""
-        checks: list[CaseCheck] = []
-        try:
-            raw = json.loads((folder / "checks.json").read_text())
-            checks = [CaseCheck.from_json(c) for c in raw]
-        except (OSError, ValueError, TypeError, KeyError):
-            pass
-        tables = {p.stem: pd.read_csv(p, index_col=0)
-                  for p in sorted((folder / "tables").glob("*.csv"))}
+        checks = _read_checks(folder / "checks.json")
+        tables = {p.stem: _read_table(p) for p in sorted((folder / "tables").glob("*.csv"))}
         figures = sorted((folder / "figures").glob("*.png"))
         path = folder / "findings.md"
-        findings = path.read_text() if path.exists() else ""
+        # findings.md was written escaped (render_case_outputs): back to the case's text
+        findings = html.unescape(_read_text(path)) if path.exists() else ""
         return cls(records, checks, tables, figures, findings, folder)
 
     @property
@@ -135,7 +141,7 @@ def render_case_outputs(
     outdir.mkdir(parents=True, exist_ok=True)
     source = Path(arrays_dir) if arrays_dir is not None else outdir
     df = records_frame(records, case)
-    df.to_csv(outdir / "results.csv", index=False)
+    atomic_write_text(outdir / "results.csv", df.to_csv(index=False))
     atomic_write_text(outdir / "results.json", json.dumps(records, indent=1, default=str))
 
     tables = case.tables(records) if records else {}
@@ -146,24 +152,87 @@ def render_case_outputs(
     tdir = outdir / "tables"
     tdir.mkdir(exist_ok=True)
     for name, table in tables.items():
-        table.to_csv(tdir / f"{name}.csv")
-        (tdir / f"{name}.md").write_text(markdown_table(table))
+        component("table", name)  # a file name: no '/', no '..'
+        atomic_write_text(tdir / f"{name}.csv", table.to_csv())
+        atomic_write_text(tdir / f"{name}.md", markdown_table(table))
 
     fdir = outdir / "figures"
     fdir.mkdir(exist_ok=True)
     import matplotlib
 
     matplotlib.use("Agg")
-    figures = case.figures(records, lambda rid: load_arrays(source, rid), fdir) if records else []
-    figures = [Path(f) for f in figures]
+    figures = _draw_figures(case, records, source, fdir) if records else []
 
     checks = (case.checks(records) + case.claims(records)) if records else []
     atomic_write_text(outdir / "checks.json",
                       json.dumps([c.to_json() for c in checks], indent=1))
     findings = case.findings(records) if records else ""
-    (outdir / "findings.md").write_text(findings.strip() + "\n" if findings.strip() else "")
-    (outdir / "report.md").write_text(render_report(case, records, checks, tables, figures, outdir))
+    atomic_write_text(outdir / "findings.md",
+                      md_escape(findings.strip()) + "\n" if findings.strip() else "")
+    atomic_write_text(outdir / "report.md",
+                      render_report(case, records, checks, tables, figures, outdir))
     return Rendered(records, checks, tables, figures, findings, outdir, case.headline)
+
+
+def _draw_figures(case: Case, records: list[dict[str, Any]], source: Path,
+                  fdir: Path) -> list[Path]:
+    """The case's figures, drawn into a scratch folder inside ``fdir`` and each renamed into
+    ``fdir``: a reader never finds half a PNG, and a failing figure leaves the old ones."""
+    scratch = Path(tempfile.mkdtemp(prefix=".drawing-", dir=fdir))
+    try:
+        drawn = [Path(f) for f in case.figures(records, lambda rid: load_arrays(source, rid),
+                                               scratch)]
+        out = []
+        for fig in drawn:
+            try:
+                rel = fig.resolve().relative_to(scratch.resolve())
+            except ValueError:  # the case put it somewhere else: leave it there
+                out.append(fig)
+                continue
+            dest = fdir / rel
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            if fig.exists():
+                os.replace(fig, dest)
+            out.append(dest)
+        return out
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise InputFileError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise InputFileError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})"
+                             ) from None
+
+
+def _read_checks(path: Path) -> list[CaseCheck]:
+    """The checks an earlier render stored ([] when there is no checks.json); InputFileError
+    when the file is corrupt: a broken file must not read as "no checks" (= pass)."""
+    if not path.exists():
+        return []
+    try:
+        raw = json.loads(_read_text(path))
+        bad = [str(c["name"]) for c in raw if c.get("passed") not in (True, False, None)]
+        checks = [CaseCheck.from_json(c) for c in raw]  # gates and claims (kind, rule, ...)
+    except (ValueError, TypeError, KeyError, AttributeError, RecursionError) as exc:
+        raise InputFileError(f"{path}: truncated or corrupt ({type(exc).__name__}: "
+                             f"{str(exc)[:120]}); render the case again") from None
+    if bad:
+        raise InputFileError(f"{path}: check {bad[0]!r} has 'passed' other than true, false "
+                             "or null")
+    return checks
+
+
+def _read_table(path: Path) -> pd.DataFrame:
+    _read_text(path)  # the encoding, with the file named
+    try:
+        return pd.read_csv(path, index_col=0)
+    except (ValueError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise InputFileError(f"{path}: not a readable table ({str(exc)[:120]})") from None
 
 
 def check_lines(checks: list[CaseCheck]) -> list[str]:
@@ -193,28 +262,31 @@ def render_report(
     for r in records:
         by_status[r.get("status", "?")] = by_status.get(r.get("status", "?"), 0) + 1
     status = ", ".join(f"{v} {k}" for k, v in sorted(by_status.items()))
-    lines = [f"# {case.title or case.name}", "", case.description.strip(), ""]
+    lines = [f"# {md_escape(case.title or case.name)}", "", md_escape(case.description.strip()),
+             ""]
     tiers = sorted({str(r.get("tier")) for r in records})
     solvers = sorted({str(r.get("solver")) for r in records})
-    lines += [f"{n} runs ({status}); tier {', '.join(tiers)}; solver {', '.join(solvers)}.", ""]
+    lines += [md_escape(f"{n} runs ({status}); tier {', '.join(tiers)}; solver "
+                        f"{', '.join(solvers)}."), ""]
     failed = [r for r in records if r.get("status") != "completed"]
     if failed:
         lines += ["Runs that did not complete:", ""]
-        lines += [f"- `{r['run_id']}`: {r.get('status')}: {r.get('reason', '')}"
-                  for r in failed[:20]]
+        lines += [f"- `{r['run_id']}`: {md_escape(r.get('status'))}: "
+                  f"{md_escape(r.get('reason', ''))}" for r in failed[:20]]
         lines.append("")
     findings = case.findings(records) if records else ""
     if findings:
-        lines += ["## Findings", "", findings.strip(), ""]
+        lines += ["## Findings", "", md_escape(findings.strip()), ""]
     if claims_of(checks):
         lines += ["## Claims", "", "The paper's statements tested as hypotheses "
                   "(docs/method.md section 8); they do not decide the exit status.", "",
-                  *claim_lines(checks), ""]
+                  *map(md_escape, claim_lines(checks)), ""]
     if gates_of(checks):
         lines += ["## Gates", "", "These decide the exit status (docs/method.md section 8).", "",
-                  *check_lines(checks), ""]
+                  *map(md_escape, check_lines(checks)), ""]
     for name, table in tables.items():
-        lines += [f"## Table: {name}", "", markdown_table(table), f"(also `tables/{name}.csv`)", ""]
+        lines += [f"## Table: {md_escape(name)}", "", markdown_table(table),
+                  f"(also `tables/{name}.csv`)", ""]
     if figures:
         lines += ["## Figures", ""]
         lines += [f"![{f.stem}]({f.relative_to(outdir).as_posix()})" for f in figures]

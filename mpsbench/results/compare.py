@@ -1,8 +1,9 @@
 """Hold the metrics of a run against a baseline run (``mpsbench compare``).
 
-Records match by (case, solver, every parameter the case declares); a parameter a record lacks
-(a baseline older than the parameter) takes its default.  For a case that cannot be loaded the
-run id, built from the same three things, is the key.
+Records match by (case, solver, solver options, every parameter the case declares); a parameter
+a record lacks (a baseline older than the parameter) takes its default, a record without solver
+options has the backend's defaults.  For a case that cannot be loaded the run id, built from the
+same things, is the key.
 
 Per metric, a :class:`Rule` says which way is better and how far it may move:
 
@@ -16,11 +17,20 @@ Per metric, a :class:`Rule` says which way is better and how far it may move:
 
 A metric is unchanged when ``|current - baseline| <= rtol * |baseline| + atol``.  A record that
 completed in the baseline but diverged or failed now, or a gated metric that is missing now, is
-a regression too.  Records only in one set are listed as appeared / vanished (not regressions).
+a regression too.  A gated metric the baseline has no value for (null) is listed as *unheld*:
+nothing holds it.  Records only in one set are listed as appeared / vanished (not regressions).
+
+Input that cannot be trusted is refused (:class:`CompareError`, exit 2), naming the file and
+the record: unreadable or non-UTF-8 files, a CSV whose last row is cut short or whose rows
+have the wrong number of fields, NaN or infinite values (a missing value is null, an empty
+cell), records without case, solver or status, a broken record file in a ``runs/`` folder,
+and a folder another mpsbench process is writing.
 """
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import math
 from dataclasses import dataclass, field
@@ -30,21 +40,28 @@ from typing import Any
 import pandas as pd
 
 from mpsbench.cases import Case, Param, get_case
-from mpsbench.errors import ConfigError
+from mpsbench.errors import ConfigError, MpsbenchError
+from mpsbench.results.escape import md_escape, md_frame
+from mpsbench.results.identity import HASH_COLUMN, OPTIONS_COLUMN
+from mpsbench.results.lock import held_by_other
 from mpsbench.results.records import ENV_COLUMNS, load_records
 
 REQUIRED = ("case", "solver", "status")
-IDENTITY = ("case", "solver", "solver_version", "tier", "run_id", "status", "reason")
+IDENTITY = ("case", "solver", "solver_version", "tier", "run_id", HASH_COLUMN, OPTIONS_COLUMN,
+            "status", "reason")
 TIMING = {"wall_time_s": "lower", "particle_steps_per_s": "higher", "elapsed_s": "lower"}
 COUNTERS = ("n_particles", "n_steps", "n_solver_runs")
 ERROR_WORDS = ("error", "noise", "drift")
 DIRECTIONS = ("lower", "higher", "equal", "info")
 DEFAULT_RTOL = 0.05
 DEFAULT_ATOL = 1e-12
-ORDER = {"regression": 0, "worse": 1, "better": 2, "info": 3, "appeared": 4, "vanished": 5}
+ORDER = {"regression": 0, "unheld": 1, "worse": 2, "better": 3, "info": 4, "appeared": 5,
+         "vanished": 6}
+NON_FINITE_TEXT = {"nan", "+nan", "-nan", "inf", "+inf", "-inf", "infinity", "+infinity",
+                   "-infinity"}
 
 
-class CompareError(ValueError):
+class CompareError(MpsbenchError, ValueError):
     """A baseline or current result set that cannot be read or compared; the message says why."""
 
 
@@ -99,6 +116,10 @@ def load_results(path: str | Path) -> list[dict[str, Any]]:
     if not p.exists():
         raise CompareError(f"{p}: no such file or folder")
     if p.is_dir():
+        holder = held_by_other(p)
+        if holder is not None:
+            raise CompareError(f"{p} is being written by another mpsbench process (pid "
+                               f"{holder}); compare it when that has finished")
         for name in ("results.json", "results.csv"):
             if (p / name).is_file():
                 p = p / name
@@ -110,11 +131,11 @@ def load_results(path: str | Path) -> list[dict[str, Any]]:
                                "runs/ with records)")
     if p.suffix == ".json":
         try:
-            data = json.loads(p.read_text())
-        except UnicodeDecodeError as exc:
-            raise CompareError(f"{p}: not a text file ({exc})") from None
+            data = json.loads(_text(p))
         except json.JSONDecodeError as exc:
-            raise CompareError(f"{p}: corrupt JSON: {exc}") from None
+            raise CompareError(f"{p}: truncated or corrupt JSON: {exc}") from None
+        except RecursionError:
+            raise CompareError(f"{p}: JSON nested too deeply") from None
         if isinstance(data, dict) and isinstance(data.get("records"), list):
             data = data["records"]
         if not isinstance(data, list) or not all(isinstance(r, dict) for r in data):
@@ -122,9 +143,11 @@ def load_results(path: str | Path) -> list[dict[str, Any]]:
                                f"{', '.join(REQUIRED)}), got {type(data).__name__}")
         return _validated(data, p)
     if p.suffix == ".csv":
+        text = _text(p)
+        _check_csv(p, text)
         try:
-            df = pd.read_csv(p)
-        except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+            df = pd.read_csv(io.StringIO(text), keep_default_na=False, na_values=[""])
+        except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
             raise CompareError(f"{p}: corrupt CSV: {exc}") from None
         missing = [c for c in REQUIRED if c not in df.columns]
         if missing:
@@ -135,6 +158,44 @@ def load_results(path: str | Path) -> list[dict[str, Any]]:
                    for row in df.to_dict(orient="records")]
         return _validated(records, p)
     raise CompareError(f"{p}: expected a results folder, a .json or a .csv file")
+
+
+def _text(p: Path) -> str:
+    try:
+        return p.read_bytes().decode("utf-8")
+    except OSError as exc:
+        raise CompareError(f"{p}: cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise CompareError(f"{p}: not a text file (not UTF-8: {exc.reason} at byte "
+                           f"{exc.start})") from None
+
+
+def _check_csv(p: Path, text: str) -> None:
+    """A results table as mpsbench writes it: every row as long as the header, the file ending
+    with a line end (a cut-off last row would otherwise read as a row of missing values), no
+    NaN or infinite number (a missing value is an empty cell)."""
+    if not text.strip():
+        raise CompareError(f"{p}: empty file")
+    if not text.endswith(("\n", "\r")):
+        raise CompareError(f"{p}: truncated: the last line has no line end (a results table "
+                           "written by mpsbench ends with one)")
+    try:
+        rows = list(csv.reader(io.StringIO(text)))
+    except csv.Error as exc:
+        raise CompareError(f"{p}: corrupt CSV: {exc}") from None
+    header = rows[0]
+    rid = header.index("run_id") if "run_id" in header else None
+    for k, row in enumerate(rows[1:], start=2):
+        if not row:
+            continue
+        label = f"row {k}" + (f" ({row[rid]})" if rid is not None and rid < len(row) else "")
+        if len(row) != len(header):
+            raise CompareError(f"{p}: {label} has {len(row)} fields, the header {len(header)}: "
+                               "truncated or corrupt table")
+        for col, cell in zip(header, row, strict=True):
+            if cell.strip().lower() in NON_FINITE_TEXT:
+                raise CompareError(f"{p}: {label}: {col} = {cell!r} is not a finite number (a "
+                                   "missing value is an empty cell)")
 
 
 def _missing(v: Any) -> bool:
@@ -151,11 +212,29 @@ def _validated(records: list[dict[str, Any]], p: Path) -> list[dict[str, Any]]:
     if not records:
         raise CompareError(f"{p}: holds no run records")
     for i, rec in enumerate(records):
+        label = f"record {i} ({str(rec.get('run_id', 'no run_id'))[:120]})"
         missing = [c for c in REQUIRED if _missing(rec.get(c))]
         if missing:
-            raise CompareError(f"{p}: record {i} ({rec.get('run_id', 'no run_id')}) lacks "
-                               f"{', '.join(missing)}; not a mpsbench results file?")
+            raise CompareError(f"{p}: {label} lacks {', '.join(missing)}; not a mpsbench "
+                               "results file?")
+        for key, value in rec.items():
+            if isinstance(value, float) and not math.isfinite(value):
+                raise CompareError(f"{p}: {label}: {key} = {value!r} is not a finite number "
+                                   "(a missing value is null)")
+            if isinstance(value, (list, dict)) and key not in (OPTIONS_COLUMN,):
+                if _has_non_finite(value):
+                    raise CompareError(f"{p}: {label}: {key} holds a NaN or infinite number")
     return records
+
+
+def _has_non_finite(value: Any) -> bool:
+    if isinstance(value, float):
+        return not math.isfinite(value)
+    if isinstance(value, list):
+        return any(_has_non_finite(v) for v in value)
+    if isinstance(value, dict):
+        return any(_has_non_finite(v) for v in value.values())
+    return False
 
 
 # ---------------------------------------------------------------- matching
@@ -194,7 +273,8 @@ class _Cases:
 
 
 def record_key(rec: dict[str, Any], case: Case | None) -> tuple[Any, ...]:
-    head = (str(rec["case"]), str(rec["solver"]))
+    # a record older than solver options has none: the backend's defaults
+    head = (str(rec["case"]), str(rec["solver"]), str(rec.get("solver_options") or ""))
     if case is None:
         if _missing(rec.get("run_id")):
             raise CompareError(f"record of unknown case {rec['case']!r} has no run_id to match by")
@@ -306,7 +386,7 @@ def compare(
             if change is None:
                 result.compared += 1
             elif change.kind != "skip":
-                result.compared += 1
+                result.compared += change.kind != "unheld"
                 result.changes.append(change)
     for key in base:
         if key not in cur:
@@ -327,6 +407,9 @@ def _compare_value(rid: str, metric: str, bv: Any, cv: Any, rule: Rule) -> Chang
             return Change("skip", rid)
         return Change("info", rid, metric, bv, cv, "info")
     if b is None:
+        if rule.gate and rule.direction != "info":  # the gate is off for it: say so
+            return Change("unheld", rid, metric, bv, cv, rule.describe(),
+                          "no baseline value: not held")
         return Change("info", rid, metric, bv, cv, rule.describe(), "new metric")
     if c is None:
         kind = "regression" if rule.gate else "info"
@@ -397,7 +480,10 @@ def changes_frame(cmp: Comparison) -> pd.DataFrame:
 def summary_line(cmp: Comparison) -> str:
     return (f"{cmp.matched} matched records ({cmp.n_baseline} in baseline, {cmp.n_current} now), "
             f"{cmp.compared} metric values held against their tolerance: "
-            f"{cmp.count('regression')} regression(s), {cmp.count('better')} better, "
+            f"{cmp.count('regression')} regression(s), "
+            + (f"{cmp.count('unheld')} not held (no baseline value), " if cmp.count("unheld")
+               else "")
+            + f"{cmp.count('better')} better, "
             f"{cmp.count('info')} informational change(s), {cmp.count('appeared')} appeared, "
             f"{cmp.count('vanished')} vanished.")
 
@@ -408,21 +494,21 @@ def render_markdown(cmp: Comparison, baseline: str, current: str,
     lines = [f"## mpsbench compare: {verdict}", ""]
     for label, path, rec in (("Baseline", baseline, meta[0] if meta else {}),
                              ("Current", current, meta[1] if meta else {})):
-        bits = [f"**{label}**: `{path}`"]
+        bits = [f"**{label}**: `{str(path).replace('`', '')}`"]
         for key, name in (("tier", "tier"), ("mpsbench_version", "mpsbench"),
                           ("git_commit", "commit"), ("machine", "machine")):
             if rec.get(key):
-                bits.append(f"{name} {rec[key]}")
+                bits.append(f"{name} {md_escape(rec[key])}")
         lines.append(", ".join(bits) + "  ")
     lines += ["", summary_line(cmp), ""]
     df = changes_frame(cmp)
     if df.empty:
         lines += ["Every compared metric is within its tolerance.", ""]
     else:
-        lines += [str(df.to_markdown(index=False)), ""]
+        lines += [str(md_frame(df).to_markdown(index=False)), ""]
     if not cmp.timing.empty:
         lines += ["### Timing (informational; never a regression)", "",
-                  str(cmp.timing.to_markdown(index=False, floatfmt=".4g")), ""]
+                  str(md_frame(cmp.timing).to_markdown(index=False, floatfmt=".4g")), ""]
     if cmp.count("vanished") or cmp.count("appeared"):
         lines += ["Records appeared or vanished: if the case grids changed on purpose, refresh the "
                   "baseline (see validations/baselines/README.md).", ""]

@@ -8,8 +8,8 @@ The document (every key always present; docs/ci.md shows an example)::
     current      the same for the current set
     matched      records present in both (matched by case, solver and parameters)
     compared     metric values held against a tolerance
-    counts       {kind: number of changes} for every kind: regression, worse, better, info,
-                 appeared, vanished
+    counts       {kind: number of changes} for every kind: regression, unheld, worse, better,
+                 info, appeared, vanished
     tolerance    {"rtol", "atol"}: the command-line overrides (null: each metric's own rule)
     changes      [{"kind", "record", "metric", "baseline", "current", "relative", "rule",
                    "note"}], in the order the text report lists them; "record" is the run id,

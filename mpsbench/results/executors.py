@@ -30,6 +30,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from pathlib import Path
 from typing import Any
 
+from mpsbench.errors import MpsbenchError
 from mpsbench.results.records import (
     Task,
     _crashed,
@@ -44,7 +45,7 @@ FolderFn = Callable[[Task], Path]
 EXECUTORS = ("local", "dask")
 
 
-class ExecutorError(RuntimeError):
+class ExecutorError(MpsbenchError, RuntimeError):
     """An executor could not be started (missing extra, unreachable scheduler)."""
 
 

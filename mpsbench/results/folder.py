@@ -25,19 +25,21 @@ Pass/fail rules (gates decide; claims only with --strict-claims): :mod:`.section
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
+from mpsbench.errors import InputFileError
 from mpsbench.results.case_report import Rendered
 from mpsbench.results.html import render_index
+from mpsbench.results.paths import atomic_copy, component, inside, safe_dir
 from mpsbench.results.records import (
     COMMON_COLUMNS,
     ENV_COLUMNS,
     atomic_write_text,
     load_records,
+    solver_folder,
 )
 from mpsbench.results.sections import CaseSection, exit_ok
 from mpsbench.results.summary import render_summary
@@ -67,13 +69,14 @@ def copy_figures(out: Path, sections: list[CaseSection]) -> dict[Path, Path]:
         several = sec.combined is not None
         if sec.combined is not None:
             parts.append(("", sec.combined))
-        parts += [(s.solver if several else "", s.rendered) for s in sec.solvers]
+        parts += [(solver_folder(s.solver) if several else "", s.rendered) for s in sec.solvers]
+        case_dir = out / "figures" / component("case", sec.name)
         for sub, rendered in parts:
-            dest = out / "figures" / sec.name / sub if sub else out / "figures" / sec.name
+            dest = case_dir / component("solver", sub) if sub else case_dir
             for fig in rendered.figures:
                 if fig.exists():
-                    dest.mkdir(parents=True, exist_ok=True)
-                    shutil.copy2(fig, dest / fig.name)
+                    safe_dir(out, dest)
+                    atomic_copy(fig, inside(out, dest / component("figure", fig.name)))
                     copies[fig] = dest / fig.name
     return copies
 
@@ -88,7 +91,8 @@ def write_top_level(
     out.mkdir(parents=True, exist_ok=True)
     records = [r for sec in sections for r in sec.records]
     if write_results:
-        all_records_frame(records, param_names).to_csv(out / "results.csv", index=False)
+        atomic_write_text(out / "results.csv",
+                          all_records_frame(records, param_names).to_csv(index=False))
         atomic_write_text(out / "results.json", json.dumps(records, indent=1, default=str))
     copy_figures(out, sections)
     atomic_write_text(out / "summary.md", render_summary(sections, manifest, out))
@@ -100,23 +104,52 @@ def write_top_level(
 
 
 def read_manifest(out: Path) -> dict[str, Any]:
-    try:
-        data = json.loads((out / MANIFEST).read_text())
-        return data if isinstance(data, dict) else {}
-    except (OSError, ValueError):
+    """The folder's manifest.json ({} when there is none: a folder from an older version);
+    InputFileError when it is there but unreadable, truncated or not an object."""
+    path = out / MANIFEST
+    if not path.exists():
         return {}
+    try:
+        data = json.loads(path.read_bytes().decode("utf-8"))
+    except (OSError, ValueError, RecursionError) as exc:
+        raise InputFileError(f"{path}: unreadable or truncated ({type(exc).__name__}: "
+                             f"{str(exc)[:120]})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("cases", []), list) \
+            or not all(isinstance(c, dict) for c in data.get("cases", [])):
+        raise InputFileError(f"{path}: not a results manifest (an object whose 'cases' is a "
+                             "list of objects)")
+    return data
 
 
 def case_folders(out: Path) -> list[tuple[str, Path, list[dict[str, Any]]]]:
-    """(case name, case folder, records) for every case found in a results folder."""
+    """(case name, case folder, records) for every case found in a results folder.
+
+    Every record must be readable (:func:`~mpsbench.results.records.load_records` names the
+    first that is not) and belong to its folder's case: one case per folder, and in a folder
+    of several cases the sub-folder is named after it.
+    """
     found: list[tuple[str, Path, list[dict[str, Any]]]] = []
     if (out / "runs").is_dir():  # a single-case folder from 'mpsbench validate CASE'
         records = load_records(out)
-        names = list(dict.fromkeys(str(r.get("case")) for r in records)) or [out.name]
-        return [(names[0], out, records)]
-    for sub in sorted(p for p in out.iterdir() if p.is_dir()):
+        name = _one_case(out, records) or out.name
+        return [(name, out, records)]
+    for sub in sorted(p for p in out.iterdir() if p.is_dir() and not p.name.startswith(".")):
         if (sub / "runs").is_dir():
+            inside(out, sub)  # a symbolic link out of the folder is not one of its cases
             records = load_records(sub)
-            name = str(records[0].get("case")) if records else sub.name
+            name = _one_case(sub, records) or sub.name
+            if name != sub.name:
+                raise InputFileError(f"{sub / 'runs'}: records of case {name!r} in the folder "
+                                     f"of case {sub.name!r}; move them to {name}/runs/")
             found.append((name, sub, records))
     return found
+
+
+def _one_case(folder: Path, records: list[dict[str, Any]]) -> str | None:
+    names = list(dict.fromkeys(str(r["case"]) for r in records))
+    if len(names) > 1:
+        other = next(r for r in records if r["case"] == names[1])
+        raise InputFileError(f"{folder / 'runs' / (other['run_id'] + '.json')}: case "
+                             f"{names[1]!r}, but the folder's other records are of case "
+                             f"{names[0]!r}: one case per folder")
+    return names[0] if names else None

@@ -19,6 +19,7 @@ import pandas as pd
 
 from mpsbench.cases import CaseCheck
 from mpsbench.results.case_report import Rendered
+from mpsbench.results.escape import safe_href
 from mpsbench.results.sections import (
     CaseSection,
     claim_counts,
@@ -95,13 +96,26 @@ def claims_html(sections: list[CaseSection]) -> list[str]:
 
 
 def _inline(text: str) -> str:
-    """Escape, then Markdown's inline code, bold, emphasis and links."""
+    """Escape, then Markdown's inline code, bold, emphasis and links.
+
+    Only http(s), relative and ``#`` link targets become links (:func:`safe_href`); any other
+    (``javascript:``, ``data:``, ...) stays text, since findings, check details and manifest
+    fields can carry text from records and plugins.
+    """
     out = esc(text)
     out = re.sub(r"`([^`]+)`", r"<code>\1</code>", out)
     out = re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", out)
     out = re.sub(r"(?<![\w*])\*([^*\s][^*]*)\*(?![\w*])", r"<em>\1</em>", out)
     out = re.sub(r"(?<!\w)_([^_\s][^_]*)_(?!\w)", r"<em>\1</em>", out)
-    return re.sub(r"\[([^\]]+)\]\(([^)\s]+)\)", r'<a href="\2">\1</a>', out)
+    return re.sub(r"\[([^\]]+)\]\(([^)\s]+)\)", _link, out)
+
+
+def _link(m: re.Match[str]) -> str:
+    """A Markdown link (text and target already escaped): live when the target is safe."""
+    text, href = m.group(1), m.group(2)
+    if not safe_href(href) or "<" in href:  # "<": markup (<code>) put into the target above
+        return m.group(0)
+    return f'<a href="{href}">{text}</a>'
 
 
 def markdown_html(text: str) -> str:
@@ -146,7 +160,8 @@ def markdown_html(text: str) -> str:
             lis = "".join(f"<li>{_inline(t)}</li>" for t in items)
             blocks.append(f"<{tag}>{lis}</{tag}>")
             continue
-        para = []
+        para = [line.strip()]  # at least this line: "#tag" is no heading and must not hang
+        i += 1
         while i < len(lines) and lines[i].strip() and not lines[i].lstrip().startswith(("|", "#")):
             para.append(lines[i].strip())
             i += 1

@@ -172,7 +172,7 @@ def mpsbench_environment() -> dict[str, Any]:
 
 @functools.cache
 def _solver(spec: str) -> tuple[str | None, str | None]:
-    from mpsbench.run.protocol import get_solver_class
+    from mpsbench.run.specs import get_solver_class
 
     try:
         cls = get_solver_class(spec)

@@ -12,7 +12,6 @@ documented in docs/columns.md.  Sweeps over many tasks are :mod:`mpsbench.result
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -20,7 +19,6 @@ import platform
 import re
 import tempfile
 import time
-import traceback
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,12 +27,20 @@ from typing import Any
 import numpy as np
 
 from mpsbench.cases import get_case
+from mpsbench.errors import InputFileError, where
+from mpsbench.registry import name_problem
+from mpsbench.results.identity import HASH_COLUMN, run_hash, task_hash
 from mpsbench.run.protocol import Status
+from mpsbench.run.specs import solver_spec
 
 COMMON_COLUMNS = (
-    "case", "solver", "solver_version", "tier", "run_id", "status", "reason", "wall_time_s",
-    "particle_steps_per_s", "n_particles", "n_steps",
+    "case", "solver", "solver_options", "solver_version", "tier", "run_id", HASH_COLUMN, "status",
+    "reason",
+    "wall_time_s", "particle_steps_per_s", "n_particles", "n_steps",
 )
+RECORD_STATUSES = (Status.COMPLETED.value, Status.DIVERGED.value, Status.FAILED.value)
+RUN_ID_CHARS = "letters, digits, '=', '.', '_', '+', '-', starting with a letter or digit"
+_RUN_ID_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9=._+-]{0,199}")
 
 
 def run_id(
@@ -46,9 +52,13 @@ def run_id(
 ) -> str:
     """A readable, filesystem-safe name built from the parameters (plus a short hash).
 
-    With the case's ``defaults`` (in the case's parameter order) the readable part lists the
-    parameters that differ from them or are named in ``always`` (those a study sweeps), in that
-    order, so names stay short and say what the run varies; the hash covers every parameter.
+    ``solver`` is the canonical solver spec (``numba`` or ``numba:threads=1``): options off
+    their defaults are part of the name.  With the case's ``defaults`` (in the case's parameter
+    order) the readable part lists the parameters that differ from them or are named in
+    ``always`` (those a study sweeps), in that order, so names stay short and say what the run
+    varies; the suffix is the start of the run's identity hash (:mod:`mpsbench.results.identity`),
+    which covers every parameter.  The name is a label: runs are matched by their hash, not by
+    name.
     """
     if defaults is not None:
         keep = set(always)
@@ -58,11 +68,10 @@ def run_id(
         shown = sorted(params)
     parts = [case, solver] + [f"{k}={_short(params[k])}" for k in shown]
     text = "_".join(parts)
-    digest = hashlib.sha1(json.dumps([case, solver, sorted(params.items())], default=str).encode())
-    safe = re.sub(r"[^A-Za-z0-9=.+-]+", "_", text)
+    safe = re.sub(r"\.{2,}", "_", re.sub(r"[^A-Za-z0-9=.+-]+", "_", text)).lstrip("._=+-")
     if len(safe) > 150:
         safe = safe[:150]
-    return f"{safe}_{digest.hexdigest()[:8]}"
+    return f"{safe or 'run'}_{run_hash(case, solver, params)[:8]}"
 
 
 def run_ids(
@@ -84,11 +93,47 @@ def _short(v: Any) -> str:
 
 @dataclass
 class Task:
+    """One planned run.  ``run_hash`` (its identity, see :mod:`.identity`) is computed from
+    case, solver and parameters unless given."""
+
     case: str
-    solver: str
+    solver: str  # the canonical solver spec: NAME or NAME:key=value,... (non-default options)
     tier: str
     params: dict[str, Any]
     run_id: str
+    run_hash: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.run_hash:
+            self.run_hash = task_hash(self.case, self.solver, self.params)
+
+
+def solver_columns(spec: str) -> dict[str, str]:
+    """The record columns of a solver spec: ``solver`` (the name) and ``solver_options``
+    (``key=value,...`` of the non-default options, '' for none), kept apart so the name stays
+    a plain name wherever a record's solver is used (folders, tables)."""
+    name, _, options = spec.partition(":")
+    return {"solver": name, "solver_options": options}
+
+
+def solver_label(record: dict[str, Any]) -> str:
+    """The solver spec of a record: ``solver``, with ``:solver_options`` when it has options."""
+    name = str(record.get("solver", "?"))
+    options = record.get("solver_options") or ""
+    return f"{name}:{options}" if options else name
+
+
+def solver_folder(label: str) -> str:
+    """A folder name for a solver spec: the name, then the options with every character that is
+    not a letter, digit or ``=.+-`` replaced by ``_`` (``numba:threads=1``: ``numba_threads=1``).
+    """
+    name, _, options = label.partition(":")
+    return f"{name}_{re.sub(r'[^A-Za-z0-9=.+-]+', '_', options)}" if options else name
+
+
+def canonical_solver(text: str) -> str:
+    """The canonical spec of ``text`` (validated against the backend's options)."""
+    return solver_spec(text).text
 
 
 ENV_COLUMNS = (
@@ -127,8 +172,8 @@ def execute_task(task: Task, outdir: str, env: dict[str, Any]) -> dict[str, Any]
     runs = Path(outdir) / "runs"
     runs.mkdir(parents=True, exist_ok=True)
     record: dict[str, Any] = {
-        "case": task.case, "solver": task.solver, "solver_version": "", "tier": task.tier,
-        "run_id": task.run_id, **task.params,
+        "case": task.case, **solver_columns(task.solver), "solver_version": "",
+        "tier": task.tier, "run_id": task.run_id, HASH_COLUMN: task.run_hash, **task.params,
     }
     t0 = time.perf_counter()
     arrays: dict[str, np.ndarray] = {}
@@ -158,10 +203,8 @@ def execute_task(task: Task, outdir: str, env: dict[str, Any]) -> dict[str, Any]
         record.update({k: _plain(v) for k, v in out.metrics.items()})
         arrays = out.arrays
     except Exception as exc:  # noqa: BLE001 - a broken case or solver is recorded, not fatal
-        tb = traceback.extract_tb(exc.__traceback__)
-        where = f" (at {tb[-1].filename}:{tb[-1].lineno})" if tb else ""
         record.update(
-            status=Status.FAILED.value, reason=f"{type(exc).__name__}: {exc}{where}",
+            status=Status.FAILED.value, reason=f"{type(exc).__name__}: {exc}{where(exc)}",
             wall_time_s=round(time.perf_counter() - t0, 4), particle_steps_per_s=0.0,
             n_particles=0, n_steps=0,
         )
@@ -181,6 +224,7 @@ def _solver_commit(solver: str) -> str | None:
 
 
 def _plain(v: Any) -> Any:
+    """A JSON value; a non-finite number becomes null (a record never holds NaN or inf)."""
     if isinstance(v, (np.floating, float)):
         f = float(v)
         return f if math.isfinite(f) else None
@@ -189,7 +233,9 @@ def _plain(v: Any) -> Any:
     if isinstance(v, np.bool_):
         return bool(v)
     if isinstance(v, np.ndarray):
-        return v.tolist()
+        return _plain(v.tolist())
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
     return v
 
 
@@ -239,37 +285,134 @@ def _atomic_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
                     suffix=".npz")
 
 
-def load_record(path: Path) -> dict[str, Any] | None:
-    """A record, or None if the file is unreadable (treated as not done)."""
+def record_problem(data: Any, path: Path | None = None) -> str | None:
+    """Why ``data`` (read from ``path``) is not a usable run record; None when it is.
+
+    Names that become path components (case, solver, run id) must be safe ones
+    (:func:`mpsbench.registry.name_problem`), the run id must be the file's name, the status
+    one of the recorded ones, and no value may be NaN or infinite (a record stores a missing
+    value as null).
+    """
+    if not isinstance(data, dict):
+        return f"not a run record (a JSON {type(data).__name__}, expected an object)"
+    missing = [k for k in ("case", "solver", "run_id", "status") if k not in data]
+    if missing:
+        return f"not a run record: lacks {', '.join(missing)}"
+    for key in ("case", "solver"):
+        problem = name_problem(data[key])
+        if problem is not None:
+            return f"{key} = {str(data[key])[:80]!r} is not allowed: {problem}"
+    rid = data["run_id"]
+    problem = run_id_problem(rid)
+    if problem is not None:
+        return problem
+    if path is not None and path.stem != rid:
+        return f"run_id {rid!r} is not the file's name"
+    if data["status"] not in RECORD_STATUSES:
+        return f"status = {str(data['status'])[:40]!r} is not one of {', '.join(RECORD_STATUSES)}"
+    bad = _non_finite(data)
+    if bad:
+        return f"{bad} is not a finite number (a missing value is stored as null)"
+    return None
+
+
+def run_id_problem(rid: object) -> str | None:
+    """Why ``rid`` may not be a run id (it names files under ``runs/``); None when it may."""
+    if not isinstance(rid, str) or not _RUN_ID_RE.fullmatch(rid) or ".." in rid:
+        return f"run_id = {str(rid)[:80]!r} is not allowed: {RUN_ID_CHARS}, no '..'"
+    return None
+
+
+def _non_finite(value: Any, key: str = "") -> str:
+    if isinstance(value, float) and not math.isfinite(value):
+        return f"{key} = {value!r}"
+    if isinstance(value, dict):
+        for k, v in value.items():
+            found = _non_finite(v, f"{key}.{k}" if key else str(k))
+            if found:
+                return found
+    if isinstance(value, list):
+        for k, v in enumerate(value):
+            found = _non_finite(v, f"{key}[{k}]")
+            if found:
+                return found
+    return ""
+
+
+def read_record(path: Path) -> dict[str, Any]:
+    """The record in ``path``; :class:`~mpsbench.errors.InputFileError` naming the file and
+    the problem when it is unreadable, truncated or not a valid record."""
     try:
-        data = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError):
+        data = json.loads(path.read_bytes().decode("utf-8"))
+    except OSError as exc:
+        raise InputFileError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise InputFileError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})"
+                             ) from None
+    except json.JSONDecodeError as exc:
+        raise InputFileError(f"{path}: truncated or corrupt JSON ({exc.msg} at line "
+                             f"{exc.lineno} column {exc.colno})") from None
+    except RecursionError:
+        raise InputFileError(f"{path}: JSON nested too deeply") from None
+    problem = record_problem(data, path)
+    if problem is not None:
+        raise InputFileError(f"{path}: {problem}")
+    return data
+
+
+def load_record(path: Path) -> dict[str, Any] | None:
+    """A record, or None when the file is missing, unreadable or not a valid record.
+
+    For resuming a sweep only: such a run counts as not done and runs again (its new record
+    replaces the broken file).  Reports and comparisons use :func:`read_record` /
+    :func:`load_records`, which refuse a broken file instead of dropping it.
+    """
+    try:
+        return read_record(path)
+    except InputFileError:
         return None
-    return data if isinstance(data, dict) and "status" in data else None
 
 
 def load_records(outdir: str | Path) -> list[dict[str, Any]]:
+    """Every record of ``outdir/runs/``; InputFileError naming the first broken file (and how
+    many more there are) when one is unreadable, truncated or invalid: none is dropped."""
     runs = Path(outdir) / "runs"
     records = []
+    broken: list[str] = []
     for path in sorted(runs.glob("*.json")) if runs.is_dir() else []:
-        rec = load_record(path)
-        if rec is not None:
-            records.append(rec)
+        try:
+            records.append(read_record(path))
+        except InputFileError as exc:
+            broken.append(str(exc))
+    if broken:
+        more = f" (and {len(broken) - 1} more broken record file(s))" if len(broken) > 1 else ""
+        raise InputFileError(f"{broken[0]}{more}; fix or delete it (a resumed 'mpsbench "
+                             "validate' or 'study run' runs it again)")
     return records
 
 
 def load_arrays(outdir: str | Path, rid: str) -> dict[str, np.ndarray]:
+    """The arrays a run kept for its figures ({} when it kept none); InputFileError when the
+    file is there but unreadable or truncated."""
+    problem = run_id_problem(rid)
+    if problem is not None:
+        raise InputFileError(problem)
     path = Path(outdir) / "runs" / f"{rid}.npz"
     if not path.exists():
         return {}
-    with np.load(path, allow_pickle=False) as data:
-        return {k: data[k] for k in data.files}
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    except Exception as exc:  # noqa: BLE001 - OSError, zipfile.BadZipFile, zlib.error, ...
+        raise InputFileError(f"{path}: unreadable arrays: {type(exc).__name__}: {exc}"
+                             ) from None
 
 
 def _crashed(task: Task, exc: BaseException, env: dict[str, Any]) -> dict[str, Any]:
     return {
-        "case": task.case, "solver": task.solver, "solver_version": "", "tier": task.tier,
-        "run_id": task.run_id, **task.params, "status": Status.FAILED.value,
+        "case": task.case, **solver_columns(task.solver), "solver_version": "",
+        "tier": task.tier, "run_id": task.run_id, HASH_COLUMN: task.run_hash, **task.params,
+        "status": Status.FAILED.value,
         "reason": f"worker process died: {type(exc).__name__}: {exc}", "wall_time_s": 0.0,
         "particle_steps_per_s": 0.0, "n_particles": 0, "n_steps": 0, **env,
     }

@@ -10,7 +10,6 @@ the whole run (:func:`exit_ok`).
 
 from __future__ import annotations
 
-import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -18,7 +17,10 @@ from typing import Any
 import pandas as pd
 
 from mpsbench.cases import Case, CaseCheck
+from mpsbench.errors import where
 from mpsbench.results.case_report import Rendered, render_case_outputs
+from mpsbench.results.paths import component, inside
+from mpsbench.results.records import solver_folder, solver_label
 
 
 @dataclass
@@ -61,7 +63,15 @@ def exit_ok(sections: list[CaseSection], strict_claims: bool = False) -> bool:
 
 
 def solver_order(records: list[dict[str, Any]]) -> list[str]:
-    return list(dict.fromkeys(str(r.get("solver", "?")) for r in records))
+    """The solver specs of the records in order of appearance (name, or name:options)."""
+    return list(dict.fromkeys(solver_label(r) for r in records))
+
+
+def by_spec(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The records as the case's tables and figures see them: ``solver`` holds the whole spec,
+    so runs of one backend with different options are told apart (the records themselves keep
+    the name and the options in separate columns)."""
+    return [{**r, "solver": solver_label(r)} if r.get("solver_options") else r for r in records]
 
 
 def _version(records: list[dict[str, Any]]) -> str:
@@ -75,15 +85,17 @@ def render_case(case: Case, records: list[dict[str, Any]], folder: Path) -> Case
         section.error = "no runs were planned for this tier"
         return section
     solvers = solver_order(records)
+    view = by_spec(records)
     if len(solvers) == 1:
-        rendered = render_case_outputs(case, records, folder)
+        rendered = render_case_outputs(case, view, folder)
         section.solvers = [SolverSection(solvers[0], _version(records), rendered)]
         return section
-    section.combined = render_case_outputs(case, records, folder)
-    section.by_solver = solver_table(case, records)
+    section.combined = render_case_outputs(case, view, folder)
+    section.by_solver = solver_table(case, view)
     for solver in solvers:
-        recs = [r for r in records if r.get("solver") == solver]
-        out = render_case_outputs(case, recs, folder / "by-solver" / solver, arrays_dir=folder)
+        recs = [r for r in view if r.get("solver") == solver]
+        sub = inside(folder, folder / "by-solver" / component("solver", solver_folder(solver)))
+        out = render_case_outputs(case, recs, sub, arrays_dir=folder)
         section.solvers.append(SolverSection(solver, _version(recs), out))
     return section
 
@@ -113,12 +125,18 @@ def case_from_disk(name: str, records: list[dict[str, Any]], folder: Path, why: 
                                          Rendered.from_disk(folder, records))]
     else:
         section.combined = Rendered.from_disk(folder, records)
+        view = by_spec(records)
         for s in solvers:
-            recs = [r for r in records if r.get("solver") == s]
-            rendered = Rendered.from_disk(folder / "by-solver" / s, recs)
+            recs = [r for r in view if r.get("solver") == s]
+            rendered = Rendered.from_disk(folder / "by-solver" / solver_folder(s), recs)
             section.solvers.append(SolverSection(s, _version(recs), rendered))
     if not records:
         section.error = "no records"
+    undecided = [s.rendered.folder for s in section.solvers
+                 if not (s.rendered.folder / "checks.json").is_file()]
+    if records and undecided:  # no stored checks: nothing can decide pass or fail
+        section.error = (f"no checks.json in {undecided[0]}: the case's checks can neither "
+                         "be run nor read, so nothing decides pass or fail")
     return section
 
 
@@ -127,10 +145,8 @@ def safe_render_case(case: Case, records: list[dict[str, Any]], folder: Path) ->
     try:
         return render_case(case, records, folder)
     except Exception as exc:  # noqa: BLE001 - reported in the section, the other cases go on
-        tb = traceback.extract_tb(exc.__traceback__)
-        where = f" (at {tb[-1].filename}:{tb[-1].lineno})" if tb else ""
         return CaseSection(case.name, case.title, case.description.strip(), folder, records,
-                           error=f"rendering failed: {type(exc).__name__}: {exc}{where}")
+                           error=f"rendering failed: {type(exc).__name__}: {exc}{where(exc)}")
 
 
 def verdict(ok: bool) -> str:

@@ -54,8 +54,9 @@ TOP_KEYS: dict[str, str] = {
     "description": "free text",
     "case": "a case name (see 'mpsbench validate --list')",
     "cases": "a list of case names",
-    "solver": "a solver name (see 'mpsbench solvers')",
-    "solvers": "a list of solver names (default [\"reference\"])",
+    "solver": "a solver spec: a name, or NAME:key=value,... with its options (see "
+              "'mpsbench solvers')",
+    "solvers": "a list of solver specs (default [\"reference\"])",
     "tier": "one of smoke, quick, paper (default quick)",
     "out": "the output folder, relative to the current directory (default reports/studies/NAME)",
     "jobs": "an integer >= 1 (default 1)",
@@ -138,6 +139,19 @@ class StudySpec:
             sets += case.expand(self.tier, {**fixed, **{k: [v] for k, v in combo.items()}})
         return sets
 
+    def size(self) -> int:
+        """Runs of the study before duplicates are removed, counted without expanding."""
+        from mpsbench.results.guard import grid_size
+
+        fixed = {k: [v] for k, v in self.params.items()}
+        total = 0
+        for case in self.case_objects():
+            if self.grid or not self.runs:
+                total += grid_size(case, self.tier, {**fixed, **self.grid})
+            for combo in self.runs:
+                total += grid_size(case, self.tier, {**fixed, **{k: [v] for k, v in combo.items()}})
+        return total * len(self.solvers)
+
     def tasks(self) -> list[Task]:
         """Every run of the study (deduplicated), case by case, solver by solver."""
         out: list[Task] = []
@@ -147,34 +161,47 @@ class StudySpec:
             for solver in self.solvers:
                 ids = run_ids(case.name, solver, sets, case.defaults())
                 for params, rid in zip(sets, ids, strict=True):
-                    if rid not in seen:
-                        seen.add(rid)
-                        out.append(Task(case.name, solver, self.tier, params, rid))
+                    task = Task(case.name, solver, self.tier, params, rid)
+                    if task.run_hash not in seen:  # the same run from the grid and [[runs]]
+                        seen.add(task.run_hash)
+                        out.append(task)
         return out
 
 
 # --------------------------------------------------------------------------- loading
 
 
-def load_study(path: str | Path) -> StudySpec:
-    """Read and validate a study file; raise :class:`StudyFileError` listing every problem."""
+def load_study(path: str | Path, max_runs: int | None = None) -> StudySpec:
+    """Read and validate a study file; raise :class:`StudyFileError` listing every problem.
+
+    With ``max_runs``, a study planning more runs than that (counted from the grid, before it
+    is expanded) is refused with a :class:`~mpsbench.errors.UsageError` (the ``--yes`` guard).
+    """
     path = Path(path)
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except FileNotFoundError:
         raise StudyFileError(path, ["no such file"]) from None
     except OSError as exc:
-        raise StudyFileError(path, [f"cannot read: {exc}"]) from None
+        raise StudyFileError(path, [f"cannot read: {exc.strerror or exc}"]) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise StudyFileError(path, [f"not UTF-8 text ({exc.reason} at byte {exc.start}); "
+                                    "a study file is TOML, which is UTF-8"]) from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise StudyFileError(path, [f"not valid TOML: {exc}"]) from None
-    return parse_study(data, path, text)
+    except (ValueError, RecursionError) as exc:  # an integer of > 4300 digits, deep nesting
+        raise StudyFileError(path, [f"not valid TOML: {type(exc).__name__}: {exc}"]) from None
+    return parse_study(data, path, text, max_runs=max_runs)
 
 
-def parse_study(data: dict[str, Any], path: str | Path = "<study>", text: str = "") -> StudySpec:
+def parse_study(data: dict[str, Any], path: str | Path = "<study>", text: str = "",
+                max_runs: int | None = None) -> StudySpec:
     """Validate an already parsed study table (see :func:`load_study`)."""
-    v = _Validator(Path(path))
+    v = _Validator(Path(path), max_runs)
     spec = v.run(data, text)
     if v.problems:
         raise StudyFileError(path, v.problems)
@@ -194,8 +221,9 @@ def _fmt(value: Any) -> str:
 class _Validator:
     """Collects every problem of a study file instead of stopping at the first."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, max_runs: int | None = None) -> None:
         self.path = path
+        self.max_runs = max_runs
         self.problems: list[str] = []
 
     def fail(self, key: str, message: str) -> None:
@@ -227,12 +255,9 @@ class _Validator:
             self.fail("scheduler", "a scheduler address only goes with executor = \"dask\"")
         out = self._string(data, "out", "") or None
 
-        from mpsbench.run.protocol import SOLVERS
-
         cases: list[Case] = self._load_named(
             case_names, "cases" if "cases" in data else "case", CASES, "case")
-        self._load_named(solver_names, "solvers" if "solvers" in data else "solver", SOLVERS,
-                         "solver")
+        solver_names = self._solvers(solver_names, "solvers" if "solvers" in data else "solver")
         for case in cases:
             if tier in TIERS and tier not in case.tiers:
                 self.fail("tier", f"{_fmt(tier)} is not a tier of case {case.name!r}: one of "
@@ -250,6 +275,10 @@ class _Validator:
             out=Path(out) if out else None, jobs=jobs, executor=executor, scheduler=scheduler,
             source=text,
         )
+        if self.max_runs is not None:  # before the expansion, which a huge grid makes slow
+            from mpsbench.results.guard import check_run_count
+
+            check_run_count(spec.size(), False, f"{self.path}")
         try:  # the full expansion re-checks every combination
             if not spec.tasks():
                 self.fail("grid", "the study has no runs")
@@ -308,6 +337,24 @@ class _Validator:
             except PluginLoadError as exc:
                 self.fail(key, str(exc))
         return out
+
+    def _solvers(self, specs: list[str], given: str) -> list[str]:
+        """Check each solver spec (``numba``, ``numba:threads=1``): the name against the
+        registry, the options against the backend's; return the canonical specs."""
+        from mpsbench.run.protocol import SOLVERS
+        from mpsbench.run.specs import solver_spec
+
+        out = []
+        for k, spec in enumerate(specs):
+            key = f"{given}[{k}]" if given == "solvers" else given
+            name = spec.partition(":")[0].strip()
+            if not self._load_named([name], key, SOLVERS, "solver"):
+                continue
+            try:
+                out.append(solver_spec(spec).text)
+            except ConfigError as exc:
+                self.fail(key, str(exc))
+        return list(dict.fromkeys(out))
 
     # ---- parameters
     def _param_for(self, key: str, name: str, cases: list[Case]) -> list[Param] | None:
@@ -386,7 +433,8 @@ class _Validator:
             if len(checked) == len(values):
                 out[name] = list(dict.fromkeys(checked))
         if section == "grid":
-            both = sorted(set(out) & set(data.get("params", {}) or {}))
+            fixed = data.get("params")
+            both = sorted(set(out) & set(fixed if isinstance(fixed, dict) else ()))
             for name in both:
                 self.fail(f"grid.{name}", "also set in [params]: give it in one place")
         return out
@@ -464,7 +512,8 @@ def _model_registry(param_name: str) -> Any:
     category = MODEL_PARAMS.get(param_name)
     if category is None:
         return None
-    from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+    from mpsbench.physics.gradients import GRADIENTS
+    from mpsbench.physics.laplacians import LAPLACIANS
     from mpsbench.physics.weights import WEIGHTS
 
     return {"laplacians": LAPLACIANS, "weights": WEIGHTS, "gradients": GRADIENTS}[category]

@@ -1,5 +1,8 @@
 """``summary.md``: the Markdown summary of a results folder: the claims table first (the
-paper's statements with verdict, rule and evidence), then the gates overview, then each case."""
+paper's statements with verdict, rule and evidence), then the gates overview, then each case.
+
+Text that comes from records, manifests and plugins is escaped (:mod:`.escape`).
+"""
 
 from __future__ import annotations
 
@@ -9,6 +12,7 @@ from typing import Any
 import pandas as pd
 
 from mpsbench.results.case_report import Rendered, check_lines, markdown_table
+from mpsbench.results.escape import md_cell, md_escape, md_frame
 from mpsbench.results.sections import (
     CaseSection,
     claim_counts,
@@ -40,23 +44,24 @@ def render_summary(sections: list[CaseSection], manifest: dict[str, Any], out: P
         if strict:
             head += " (--strict-claims: a refuted claim fails the run)"
     lines = [head, ""]
-    lines += header_lines(manifest) + [""]
+    lines += [md_escape(line) for line in header_lines(manifest)] + [""]
     rows = claim_rows(sections)
     if rows:
         lines += ["## Claims", "", CLAIMS_INTRO, "", *_compact_table(rows), ""]
     overview = pd.DataFrame(overview_rows(sections))
     lines += ["## Gates", "", GATES_INTRO, "", _md(overview), ""]
     for sec in sections:
-        lines += [f"## {sec.title or sec.name} (`{sec.name}`): {verdict(sec.passed)}", ""]
+        lines += [f"## {md_escape(sec.title or sec.name)} (`{sec.name}`): {verdict(sec.passed)}",
+                  ""]
         if sec.error:
-            lines += [f"**Error:** {sec.error}", ""]
+            lines += [f"**Error:** {md_escape(sec.error)}", ""]
         several = len(sec.solvers) > 1
         for s in sec.solvers:
             r = s.rendered
             if several:
-                lines += [f"### solver {s.solver} {s.version}: {verdict(r.passed)}", ""]
+                lines += [f"### solver {s.solver} {md_escape(s.version)}: {verdict(r.passed)}", ""]
             else:
-                lines += [f"Solver {' '.join(filter(None, (s.solver, s.version)))}: "
+                lines += [f"Solver {md_escape(' '.join(filter(None, (s.solver, s.version))))}: "
                           f"{len(r.records)} runs, {r.completed} completed.", ""]
             lines += _rendered_lines(r, out)
         if sec.by_solver is not None and not sec.by_solver.empty:
@@ -70,14 +75,14 @@ def render_summary(sections: list[CaseSection], manifest: dict[str, Any], out: P
 def _rendered_lines(r: Rendered, out: Path) -> list[str]:
     lines: list[str] = []
     if r.failures:
-        lines += ["Fails: " + "; ".join(r.failures) + ".", ""]
+        lines += [md_escape("Fails: " + "; ".join(r.failures) + "."), ""]
     if r.findings.strip():
-        lines += [r.findings.strip(), ""]
+        lines += [md_escape(r.findings.strip()), ""]
     if r.gates:
-        lines += ["Gates:", ""] + check_lines(r.checks) + [""]
+        lines += ["Gates:", ""] + [md_escape(line) for line in check_lines(r.checks)] + [""]
     if r.claims:
         ids = ", ".join(dict.fromkeys(c.claim for c in r.claims))
-        lines += [f"Claims {ids}: {claim_counts(r.claims)} (table at the top).", ""]
+        lines += [md_escape(f"Claims {ids}: {claim_counts(r.claims)} (table at the top)."), ""]
     head = r.headline_table()
     if head is not None:
         lines += [f"Table **{head[0]}**:", "", markdown_table(head[1])]
@@ -85,8 +90,9 @@ def _rendered_lines(r: Rendered, out: Path) -> list[str]:
 
 
 def _cell(value: Any) -> str:
-    """A table cell that cannot break the Markdown table (no pipes, no line breaks)."""
-    return " ".join(str(value).replace("|", "\\|").split())
+    """A table cell that cannot break the Markdown table: escaped (:func:`md_cell`, pipes
+    too) and on one line."""
+    return " ".join(str(md_cell(str(value))).split())
 
 
 def _compact_table(rows: list[dict[str, Any]]) -> list[str]:
@@ -98,7 +104,7 @@ def _compact_table(rows: list[dict[str, Any]]) -> list[str]:
 
 
 def _md(df: pd.DataFrame) -> str:
-    return markdown_table(df) if df.empty else str(df.to_markdown(index=False)) + "\n"
+    return markdown_table(df) if df.empty else str(md_frame(df).to_markdown(index=False)) + "\n"
 
 
 def _rel(path: Path, base: Path) -> str:

@@ -1,9 +1,12 @@
 """Sweeps: expand a case's grid into tasks and run every task not done yet, keeping one record
 per run (:mod:`mpsbench.results.records`).
 
-A run whose record exists is skipped unless ``force``.  Failed and diverged runs are recorded with
-their reason and the sweep goes on.  Runs execute on an executor (:mod:`.executors`): worker
-processes (``jobs``), in-process (``jobs=1``) or a dask cluster.
+A run is done when a record of the same run -- the same identity hash (:mod:`.identity`): case,
+solver and full parameter set, whatever the record's file is called -- exists in its folder; it
+is skipped unless ``force`` (or ``retry`` says so).  A record file that cannot be read counts as
+not done: the run runs again and its new record replaces the broken file.  Failed and diverged
+runs are recorded with their reason and the sweep goes on.  Runs execute on an executor
+(:mod:`.executors`): worker processes (``jobs``), in-process (``jobs=1``) or a dask cluster.
 """
 
 from __future__ import annotations
@@ -14,17 +17,19 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
-from mpsbench.cases import Case
+from mpsbench.cases import Case, get_case
 from mpsbench.results.executors import Executor, LocalExecutor
-from mpsbench.results.records import Task, environment, load_record, run_ids
+from mpsbench.results.identity import record_hash
+from mpsbench.results.records import Task, canonical_solver, environment, load_record, run_ids
 
 
 def plan(
     case: Case, solvers: Sequence[str], tier: str, overrides: dict[str, Sequence[Any]] | None = None
 ) -> list[Task]:
+    """The tasks of a case's tier for each solver spec (``numba``, ``numba:threads=1``)."""
     tasks = []
     sets = case.expand(tier, overrides)
-    for solver in solvers:
+    for solver in dict.fromkeys(canonical_solver(s) for s in solvers):
         ids = run_ids(case.name, solver, sets, case.defaults())
         tasks += [Task(case.name, solver, tier, p, rid) for p, rid in zip(sets, ids, strict=True)]
     return tasks
@@ -78,11 +83,14 @@ def run_tasks(
     for path in set(folder.values()) | (set() if task_dir is not None else {outdir}):
         (path / "runs").mkdir(parents=True, exist_ok=True)
     env = environment()
+    stored = {path: stored_runs(path) for path in set(folder.values())}
     records: dict[str, dict[str, Any]] = {}
+    superseded: dict[str, list[Path]] = {}
     todo: list[Task] = []
     done = 0
     for task in tasks:
-        rec = None if force else load_record(folder[task.run_id] / "runs" / f"{task.run_id}.json")
+        found = stored[folder[task.run_id]].get(task.run_hash, [])
+        rec = None if force or not found else found[0][1]
         if rec is not None and retry is not None and retry(rec):
             rec = None
         if rec is not None:
@@ -92,11 +100,43 @@ def run_tasks(
                 progress(done, len(tasks), rec, True)
         else:
             todo.append(task)
+            superseded[task.run_id] = [path for path, _ in found]
     if executor is None:
         executor = LocalExecutor(max(1, jobs))
     for task, rec in executor.run(todo, lambda t: folder[t.run_id], env):
         records[task.run_id] = rec
+        _remove_superseded(superseded.get(task.run_id, []), task.run_id)
         done += 1
         if progress:
             progress(done, len(tasks), rec, False)
     return [records[t.run_id] for t in tasks]
+
+
+def stored_runs(folder: Path) -> dict[str, list[tuple[Path, dict[str, Any]]]]:
+    """The readable records of ``folder/runs/`` by identity hash (several files can hold the
+    same run: a folder written before runs were matched by hash)."""
+    out: dict[str, list[tuple[Path, dict[str, Any]]]] = {}
+    runs = folder / "runs"
+    cases: dict[str, Case | None] = {}
+    for path in sorted(runs.glob("*.json")) if runs.is_dir() else []:
+        rec = load_record(path)
+        if rec is None:
+            continue  # unreadable: not done, runs again
+        name = str(rec["case"])
+        if name not in cases:
+            try:
+                cases[name] = get_case(name)
+            except Exception:  # noqa: BLE001 - a case that cannot be loaded: its stored hash
+                cases[name] = None
+        key = record_hash(rec, cases[name])
+        if key is not None:
+            out.setdefault(key, []).append((path, rec))
+    return out
+
+
+def _remove_superseded(paths: list[Path], run_id: str) -> None:
+    """Remove the records (and arrays) a re-run replaced under another file name."""
+    for path in paths:
+        if path.stem != run_id:
+            path.unlink(missing_ok=True)
+            path.with_suffix(".npz").unlink(missing_ok=True)

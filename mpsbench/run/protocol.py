@@ -1,19 +1,28 @@
-"""The Solver protocol, the Problem a solver is given, capabilities, and the solver registry.
+"""The Solver protocol, the Problem a solver is given, capabilities, options, and the solver
+registry.
 
 A backend implements :class:`Solver` (usually by subclassing :class:`SolverBase`, which owns the
-time, step count, status and counters).  It never owns the time loop: the runner
-(:mod:`mpsbench.run.runner`) asks for ``stable_dt()``, calls ``step(dt)`` and observes ``state()``.
-This mirrors scipy's ``OdeSolver`` / ``solve_ivp`` split.
+time, step count, status and counters; or :class:`mpsbench.run.scheme.SchemeSolver`, which also
+owns the WC-MPS and diffusion steps and asks the backend for its kernels).  It never owns the
+time loop: the runner (:mod:`mpsbench.run.runner`) asks for ``stable_dt()``, calls ``step(dt)``,
+checks ``health()`` and lets probes observe ``state()`` on their schedule.  This mirrors scipy's
+``OdeSolver`` / ``solve_ivp`` split.
+
+A backend declares its options (``options``: :class:`mpsbench.params.Option`, as a case declares
+its parameters); a solver is named by a spec, ``NAME`` or ``NAME:key=value,...``
+(:class:`SolverSpec`), on the command line, in study files and in records.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from mpsbench.params import Option
 from mpsbench.physics.config import (
     DiffusionPhysics,
     FlowPhysics,
@@ -149,6 +158,45 @@ class Capabilities:
         }
 
 
+@dataclass(frozen=True)
+class Health:
+    """What the runner checks after every step (cheap to get: no copy of the state).
+
+    ``finite``: every position, velocity and pressure is finite; ``max_fluid_speed`` [m/s]
+    (NaN when a value is not finite, 0 without fluid); ``fluid_outside``: fluid
+    particles farther than the margin outside the box along a non-periodic axis;
+    ``field_max``: max |phi| of the diffusion field (NaN when one is not finite; 0 without one).
+    """
+
+    finite: bool
+    max_fluid_speed: float
+    fluid_outside: int
+    field_max: float = 0.0
+
+
+def health_of(p: Particles, box: Box, margin: float, field_name: str | None) -> Health:
+    """:class:`Health` of a state, with numpy (the default :meth:`SolverBase.health`)."""
+    finite = bool(np.isfinite(p.pos).all() and np.isfinite(p.vel).all()
+                  and np.isfinite(p.pressure).all())
+    speed, outside = (0.0 if finite else math.nan), 0
+    # Masks over whole columns, not row gathers: p.pos[fluid] of an (N, 2) array costs ~100 us
+    # at N = 6,400, more than a numba diffusion step, and this runs after every step.
+    fluid = p.kind == Kind.FLUID
+    if finite and fluid.any():
+        speed2 = p.vel[:, 0] ** 2 + p.vel[:, 1] ** 2
+        speed = float(np.sqrt(np.max(speed2, where=fluid, initial=0.0)))
+        if not all(box.periodic):
+            outside = int(np.count_nonzero(box.outside(p.pos, margin) & fluid))
+    field_max = 0.0
+    if field_name is not None:
+        phi = p.fields[field_name]
+        if not np.isfinite(phi).all():
+            field_max = math.nan
+        elif len(phi):
+            field_max = float(np.abs(phi).max())
+    return Health(finite, speed, outside, field_max)
+
+
 @runtime_checkable
 class Solver(Protocol):
     """What the runner needs from a backend."""
@@ -172,6 +220,9 @@ class Solver(Protocol):
     def state(self) -> Particles:
         """The current particles (a view: copy before keeping it)."""
 
+    def health(self, margin: float) -> Health:
+        """The runner's per-step check (``margin`` [m]: how far outside the box counts)."""
+
     def diagnostics(self) -> dict[str, Any]:
         """Extra per-particle quantities: ``number_density``, ``n0``, ``free_surface``."""
 
@@ -179,12 +230,16 @@ class Solver(Protocol):
 class SolverBase:
     """Bookkeeping shared by backends: time, step count, status, counters, capability checks.
 
-    Subclasses implement ``_setup(problem)``, ``_advance(dt)``, ``stable_dt()`` and ``state()``.
+    Subclasses implement ``_setup(problem)``, ``_advance(dt)``, ``stable_dt()`` and ``state()``;
+    ``health()`` and the particle count per step come from ``state()`` unless a backend has a
+    cheaper way (a device backend: without copying the state to the host).  ``options``: the
+    keyword arguments of the constructor a solver spec may set (``NAME:key=value``).
     """
 
     name: str = "base"
     version: str = "0"
     capabilities: Capabilities = Capabilities()
+    options: tuple[Option, ...] = ()
 
     def __init__(self) -> None:
         self.time = 0.0
@@ -210,7 +265,16 @@ class SolverBase:
         self._advance(dt)
         self.time += dt
         self.n_steps += 1
-        self.counters["particle_steps"] += self.state().n
+        self.counters["particle_steps"] += self.particle_count()
+
+    def particle_count(self) -> int:
+        """Particles in the current state (counted into ``particle_steps`` after each step)."""
+        return self.state().n
+
+    def health(self, margin: float) -> Health:
+        assert self.problem is not None
+        return health_of(self.state(), self.problem.box, margin,
+                         getattr(self.problem.physics, "field_name", None))
 
     def diagnostics(self) -> dict[str, Any]:
         return {}
@@ -244,18 +308,3 @@ def _validate_solver(obj: Any) -> None:
 SOLVERS: Registry[type] = Registry("solver", group="mpsbench.solvers", validate=_validate_solver)
 """Every backend, built-in or plugin, comes through the ``mpsbench.solvers`` entry-point group
 (the built-ins are declared in mpsbench's own pyproject.toml)."""
-
-
-def get_solver_class(name_or_cls: str | type) -> type:
-    """A solver class from a registry name or the class itself."""
-    if isinstance(name_or_cls, str):
-        return SOLVERS.get(name_or_cls)
-    _validate_solver(name_or_cls)
-    return name_or_cls
-
-
-def make_solver(name_or_cls: str | type | Solver) -> Solver:
-    """A fresh solver instance from a name, a class, or an instance (returned as is)."""
-    if isinstance(name_or_cls, (str, type)):
-        return get_solver_class(name_or_cls)()
-    return name_or_cls

@@ -25,10 +25,11 @@ From the command line: ``mpsbench check NAME [--json]``.
 from __future__ import annotations
 
 import time
-import traceback
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
+
+from mpsbench.errors import where
 
 from .checks import (
     Check,
@@ -110,8 +111,7 @@ def run_check(
         if isinstance(exc, AssertionError):
             reason = str(exc) or "assertion failed"
         else:
-            where = traceback.extract_tb(exc.__traceback__)[-1]
-            reason = f"{type(exc).__name__}: {exc} (at {where.filename}:{where.lineno})"
+            reason = f"{type(exc).__name__}: {exc}{where(exc)}"
         outcome: Outcome = "xfail" if xfail_reason is not None else "fail"
         if xfail_reason is not None:
             reason = f"{xfail_reason} [{reason}]"

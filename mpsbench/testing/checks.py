@@ -21,18 +21,12 @@ from typing import Any
 import numpy as np
 
 from mpsbench.physics.config import FlowPhysics, Inflow, Models, Region, TimeStepping
-from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+from mpsbench.physics.gradients import GRADIENTS
+from mpsbench.physics.laplacians import LAPLACIANS
 from mpsbench.physics.particles import Box, Kind, Particles
 from mpsbench.physics.weights import WEIGHTS
-from mpsbench.run.protocol import (
-    Capabilities,
-    Problem,
-    Solver,
-    Status,
-    UnsupportedProblem,
-    get_solver_class,
-    make_solver,
-)
+from mpsbench.run.protocol import Capabilities, Problem, Solver, Status, UnsupportedProblem
+from mpsbench.run.specs import get_solver_class, make_solver
 
 from . import problems
 

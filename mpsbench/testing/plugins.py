@@ -30,7 +30,8 @@ from typing import Any
 from mpsbench.cases import CASES, Case, CaseCheck, get_case
 from mpsbench.results.records import Task, run_ids
 from mpsbench.results.sweep import run_tasks
-from mpsbench.run.protocol import SOLVERS, get_solver_class
+from mpsbench.run.protocol import SOLVERS
+from mpsbench.run.specs import get_solver_class
 
 
 @dataclass

@@ -3,25 +3,33 @@
 Needs numba (the ``fast`` extra).  Without it, importing this package raises ImportError with
 the install command, so the solver registry lists ``numba`` as unavailable with that reason.
 
-* :mod:`.solver`: :class:`NumbaSolver`, the same models, boundary conventions and order of
-  operations as the reference backend (they agree to rounding: tests/test_numba_agreement.py).
-* :mod:`.cells`: cell-list builds (CSR rows in both directions, half lists with each pair once,
-  a half pair list equal to :func:`mpsbench.physics.neighbours.build_pairs`), and
-  :class:`.cells.CellNeighbourList` (skin upkeep, a sub-list at the smaller radius).
+* :mod:`.solver`: :class:`NumbaSolver`, the hooks of :class:`mpsbench.run.scheme.SchemeSolver`
+  as compiled kernels (they agree with the reference to rounding: tests/test_numba_agreement.py);
+  options ``threads`` and ``pairwise`` (``--solver numba:threads=1``).
+* :mod:`.formulas`: the models' own formulas (weights, Laplacians, pressure gradients, the
+  stabilization) compiled; every kernel that evaluates a model is made by a factory that closes
+  over them (:mod:`._jit`), so any registered model, a plugin's too, runs here.
+* :mod:`.geometry`, :mod:`.cells`, :mod:`.neighbour_list`: the minimum image, cell-list builds
+  (CSR rows in both directions, half lists with each pair once), the skinned list with a
+  sub-list at the smaller radius, and a pair list equal to
+  :func:`mpsbench.physics.neighbours.build_pairs`.
 * :mod:`.pairs`: the WC-MPS step on half lists (each pair evaluated once, two per-chunk
   accumulators so that the result does not depend on the thread count): the solver's default.
-* :mod:`.kernels`: per-particle row kernels on full lists: number density, gradients (original,
-  pgm1-3), divergence, the four Laplacian models (+ xu-jin gradient correction) on scalar and
-  2-vector fields, the Laplacian row sum, collision and stabilization increments.
-* :mod:`.steps`: per-particle updates of a WC-MPS step, setup constants (n0, lambda, static
-  number density), the diffusion operator as per-entry coefficients.
+* :mod:`.kernels`: per-particle row kernels on full lists: sums of a pair term (number density,
+  a Laplacian's moment), the original gradient, divergence, p_min, the pressure gradient, the
+  Laplacian on scalar and 2-vector fields (+ xu-jin gradient correction, row sums), collision
+  and stabilization increments.
+* :mod:`.steps`: per-particle updates of a WC-MPS step, the equation of state, the static
+  number density, the health summary, the diffusion operator as per-entry coefficients.
 * :mod:`.mirror`: the ``mirror`` wall velocities (kernel-weighted linear fit at mirror points).
 * :mod:`.timing`: ``python -m mpsbench.solvers.numba_backend.timing`` times one pass of the row
   kernels against the numpy operators.
 
-Compiled code is cached on disk (``cache=True``, in ``__pycache__`` next to the sources, or
-``NUMBA_CACHE_DIR``): the first process compiles for about 20 s, later ones load in about 0.3 s
-(``mpsbench bench`` reports it as ``jit_compile_s``).
+Compiled code is cached on disk (in ``__pycache__`` next to the sources, or ``NUMBA_CACHE_DIR``),
+one entry per kernel and model combination, keyed by a fingerprint of the code it depends on
+(:mod:`._jit`): the first process compiles the kernels its run needs (about 20 CPU-s for the
+default dam break), later ones load them in about 0.5 s (``mpsbench bench`` reports it as
+``jit_compile_s``).
 """
 
 import os
@@ -38,8 +46,9 @@ except ImportError as exc:  # pragma: no cover - exercised only without numba
 # microseconds per kernel on an idle machine.  A value the user set wins.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-from . import cells, kernels, mirror, pairs, steps
-from .cells import CellNeighbourList, CSRNeighbours, build_csr, build_pairs_cells
+from . import cells, formulas, geometry, kernels, mirror, neighbour_list, pairs, steps
+from .cells import CSRNeighbours, build_csr
+from .neighbour_list import CellNeighbourList, build_pairs_cells
 from .solver import NumbaSolver
 
 __all__ = [
@@ -49,8 +58,11 @@ __all__ = [
     "build_csr",
     "build_pairs_cells",
     "cells",
+    "formulas",
+    "geometry",
     "kernels",
     "mirror",
+    "neighbour_list",
     "pairs",
     "steps",
 ]

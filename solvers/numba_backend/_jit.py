@@ -1,37 +1,160 @@
-"""Each compiled kernel in two builds: parallel (``prange`` over threads) and serial.
+"""How the backend compiles: kernels in two builds, kernel factories per model, a disk cache whose
+key is what the code depends on.
 
 ``@kernel`` compiles a function with ``parallel=True`` and attaches a serial build of the same
 code as its ``.serial`` attribute (:func:`pick` chooses).  The solver runs the serial builds on
 one thread: no threading-layer overhead for small problems, and no OpenMP in a process that was
 forked from one that used it (GNU OpenMP cannot be used after such a fork: numba then ends the
 process with "fork() called from a process already using GNU OpenMP").  Worker processes of a
-study pool run on one thread, so they stay clear of that.
+study pool run on one thread, so they stay clear of that.  The serial twin is a copy of the
+function under the name ``<name>_serial``, so the two builds have their own cache entries.  Both
+compile lazily, on first use.
 
-The serial twin is a copy of the function under the name ``<name>_serial``, so that the two
-builds have their own entries in numba's on-disk cache.  Both compile lazily, on first use.
+``@factory`` makes a kernel factory: a function of compiled models (:mod:`.formulas`) that
+returns a Python function closing over the models' compiled formulas; the factory compiles it
+with ``@kernel`` once per distinct models (memoised), so a kernel is built only for the models a
+run uses and calls their formulas directly (numba inlines them).  No model is named in a kernel.
+
+The disk cache (``__pycache__`` next to the sources, or ``NUMBA_CACHE_DIR``): numba's own key is
+the function's bytecode and, for a closure, a pickle of the closure cells, and a pickled
+dispatcher carries a per-process random id, so closures over compiled functions would never
+hit the cache; numba also misses edits to the functions a kernel calls when they live in another
+file.  :class:`_FingerprintCache` keys each entry by :func:`fingerprint` instead: the bytecode and
+constants of the kernel, of its closure cells and of every function or dispatcher it names,
+recursively (a plugin's formula included).  Any edit to any of them compiles anew.
 """
 
 from __future__ import annotations
 
+import hashlib
 import types
+from collections.abc import Callable
 from typing import Any
 
+import numpy as np
 from numba import njit
+from numba.core.caching import FunctionCache
+from numba.core.dispatcher import Dispatcher
+
+_CACHE_VERSION = "mpsbench-kernels-1"
 
 
 def kernel(fn: Any) -> Any:
-    """``njit(cache=True, parallel=True)(fn)`` with a serial build as ``.serial``."""
-    parallel: Any = njit(cache=True, parallel=True)(fn)
+    """``njit(parallel=True)(fn)``, disk-cached, with a serial build as ``.serial``."""
+    parallel: Any = cached(njit(parallel=True)(fn))
     twin = types.FunctionType(
         fn.__code__, fn.__globals__, fn.__name__ + "_serial", fn.__defaults__, fn.__closure__
     )
     twin.__qualname__ = fn.__qualname__ + "_serial"
     twin.__module__ = fn.__module__
     twin.__doc__ = fn.__doc__
-    parallel.serial = njit(cache=True)(twin)
+    parallel.serial = cached(njit(twin))
     return parallel
+
+
+def compiled(fn: Any) -> Any:
+    """``njit(fn)``, disk-cached (a helper that is not a kernel: no parallel build)."""
+    return cached(njit(fn))
 
 
 def pick(fn: Any, serial: bool) -> Any:
     """The serial build of a :func:`kernel` when ``serial``, else the parallel one."""
     return fn.serial if serial else fn
+
+
+def factory(build: Callable[..., Any]) -> Callable[..., Any]:
+    """A memoised kernel factory: ``build(*models)`` returns the Python function of a kernel
+    (closing over compiled formulas); the result is ``kernel(...)`` of it, once per arguments."""
+    made: dict[tuple[Any, ...], Any] = {}
+
+    def get(*models: Any) -> Any:
+        if models not in made:
+            made[models] = kernel(build(*models))
+        return made[models]
+
+    get.__name__ = build.__name__
+    get.__qualname__ = build.__qualname__
+    get.__doc__ = build.__doc__
+    get.__wrapped__ = build  # type: ignore[attr-defined]
+    return get
+
+
+# --------------------------------------------------------------------------- the disk cache
+
+
+class _FingerprintCache(FunctionCache):
+    """numba's function cache with :func:`fingerprint` as the index key (module docstring)."""
+
+    def __init__(self, py_func: Any) -> None:
+        super().__init__(py_func)
+        self._digest: str | None = None
+
+    def _index_key(self, sig: Any, codegen: Any) -> Any:
+        if self._digest is None:
+            self._digest = fingerprint(self._py_func)
+        return (sig, codegen.magic_tuple(), (_CACHE_VERSION, self._digest))
+
+
+def cached(disp: Any) -> Any:
+    """Turn on the fingerprint-keyed disk cache of a dispatcher (none where numba has no place
+    for it, e.g. a function defined outside a source file)."""
+    try:
+        disp._cache = _FingerprintCache(disp.py_func)
+    except RuntimeError:  # "cannot cache function ...: no locator available"
+        pass
+    return disp
+
+
+def fingerprint(fn: Any) -> str:
+    """A digest of everything the compiled code of ``fn`` depends on (module docstring)."""
+    parts: list[str] = []
+    _describe(fn, set(), parts)
+    return hashlib.sha256("\x00".join(parts).encode()).hexdigest()
+
+
+_PLAIN = (bool, int, float, complex, str, bytes, type(None))
+
+
+def _describe(obj: Any, seen: set[int], out: list[str]) -> None:
+    if isinstance(obj, Dispatcher):
+        out.append(f"dispatcher {sorted(obj.targetoptions.items())!r}")
+        obj = obj.py_func
+    if isinstance(obj, types.FunctionType):
+        if id(obj) in seen:
+            out.append(f"again {obj.__module__}.{obj.__qualname__}")
+            return
+        seen.add(id(obj))
+        out.append(f"function {obj.__module__}.{obj.__qualname__}")
+        names = _code(obj.__code__, out)
+        for cell in obj.__closure__ or ():
+            _describe(cell.cell_contents, seen, out)
+        for name in sorted(names):
+            if name in obj.__globals__:
+                out.append(f"global {name}")
+                _describe(obj.__globals__[name], seen, out)
+    elif isinstance(obj, _PLAIN):
+        out.append(repr(obj))
+    elif isinstance(obj, (tuple, list)):
+        out.append(f"{type(obj).__name__} {len(obj)}")
+        for item in obj:
+            _describe(item, seen, out)
+    elif isinstance(obj, np.ndarray):
+        out.append(f"array {obj.dtype} {obj.shape} {hashlib.sha256(obj.tobytes()).hexdigest()}")
+    elif isinstance(obj, types.ModuleType):
+        out.append(f"module {obj.__name__}")
+    else:  # classes, ufuncs, numba types: their identity
+        out.append(f"object {type(obj).__module__}.{type(obj).__qualname__} "
+                   f"{getattr(obj, '__qualname__', getattr(obj, '__name__', ''))}")
+
+
+def _code(code: types.CodeType, out: list[str]) -> set[str]:
+    """Describe a code object; return the global (and attribute) names it uses."""
+    out.append(code.co_code.hex())
+    out.append(repr((code.co_names, code.co_varnames, code.co_freevars)))
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            names |= _code(const, out)
+        else:
+            out.append(repr(const))
+    return names

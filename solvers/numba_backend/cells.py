@@ -1,10 +1,4 @@
-"""Cell-linked neighbour lists compiled with numba: a CSR list and a half pair list.
-
-Geometry of a box is passed to the compiled code as one (2,) float64 array ``period``: the period
-L of each periodic axis and 0.0 on free axes (:func:`box_period`).  Separations follow
-:meth:`mpsbench.physics.particles.Box.minimum_image` bit for bit: ``dx = r_j - r_i``, then on a
-periodic
-axis ``dx - L * rint(dx / L)``.
+"""Cell-linked neighbour lists compiled with numba: CSR rows, full or half.
 
 Cells are at least ``cutoff / reach`` wide (``reach`` = 2 by default), so every neighbour of a
 particle lies within ``reach`` cells of its own along each axis.  On a periodic axis the grid
@@ -12,21 +6,20 @@ covers the period (a stencil that would visit a cell twice is de-duplicated, one
 split in two); on a free axis it covers the bounding box of the positions (capped at a few cells
 per particle: coarser cells stay correct, only slower, if one particle flies far away).
 Particles are binned with a stable counting sort; the cells of one stencil row are contiguous in
-that order and are scanned as one span.
+that order and are scanned as one span.  Separations are those of :mod:`.geometry`.
 
 The CSR list holds both directions of every pair: row ``i`` is
 ``nbr[offsets[i]:offsets[i + 1]]`` (uint32: unsigned indices spare numba's negative-index
 wraparound test on every gather), so per-particle loops run in parallel without write
-conflicts.  It stores no geometry by default: the compute kernels recompute ``dx`` and ``r`` from
-the positions on the fly, which reads 4 bytes per entry instead of 28 and lets one list built at
-``r_max + skin`` serve many steps (:class:`CellNeighbourList`).  :func:`csr_geometry` fills
-``dx`` and ``r`` per entry when they are wanted.
+conflicts; a half list (``half=True``) keeps each pair once.  It stores no geometry by default:
+the compute kernels recompute ``dx`` and ``r`` from the positions on the fly, which reads 4
+bytes per entry instead of 28 and lets one list built at ``r_max + skin`` serve many steps
+(:class:`.neighbour_list.CellNeighbourList`).  :meth:`CSRNeighbours.fill_geometry` fills ``dx``
+and ``r`` per entry when they are wanted.
 
 A pair at exactly ``r == cutoff`` (to the last bit) may be in or out of the list depending on
-rounding, as in scipy's cKDTree, which decides it in a shifted frame.  W is zero there but W' of
-wf1 is not, so :class:`CellNeighbourList` builds at ``r_max (1 + SUPPORT_RTOL) + skin`` padded
-by a relative 1e-12: with any skin, or none, every pair the kernels' own closed-support test
-``r <= re (1 + SUPPORT_RTOL)`` accepts is in the list.
+rounding, as in scipy's cKDTree, which decides it in a shifted frame (the skinned list pads its
+cut-off for that: :mod:`.neighbour_list`).
 """
 
 from __future__ import annotations
@@ -37,11 +30,10 @@ import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
 
-from mpsbench.physics.neighbours import PairList
 from mpsbench.physics.particles import Box
-from mpsbench.physics.weights import SUPPORT_RTOL
 
-from ._jit import kernel, pick
+from ._jit import compiled, kernel, pick
+from .geometry import box_lo, box_period, csr_geometry, half_width, min_image
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -51,47 +43,10 @@ _SAFETY = 1.0 + 1e-9
 _CELLS_PER_PARTICLE = 4
 
 
-def box_period(box: Box | None) -> FloatArray:
-    """(2,) float64: the box length along each periodic axis, 0.0 along free axes."""
-    period = np.zeros(2)
-    if box is not None:
-        for ax in range(2):
-            if box.periodic[ax]:
-                period[ax] = box.hi[ax] - box.lo[ax]
-    return period
+# --------------------------------------------------------------------------- compiled pieces
 
 
-def box_lo(box: Box | None) -> FloatArray:
-    """(2,) float64 lower corner of the box (zeros without a box): origin of periodic cells."""
-    return np.zeros(2) if box is None else np.asarray(box.lo, dtype=np.float64)
-
-
-# --------------------------------------------------------------------------- compiled helpers
-
-
-@njit(cache=True, inline="always")
-def half_width(period):
-    """Half the period of an axis, +inf on a free axis (period 0): the argument of min_image."""
-    return 0.5 * period if period > 0.0 else np.inf
-
-
-@njit(cache=True, inline="always")
-def min_image(d, period, half):
-    """One component of a separation under the minimum-image convention.
-
-    ``half`` = :func:`half_width` (``period``).  Same bits as ``d - L * rint(d / L)``
-    (Box.minimum_image): inside half a period nothing changes, up to 1.4 periods the image is
-    d -+ L (exactly what rint gives there), beyond that the general form is used (positions
-    that are not wrapped into the box).  One well-predicted compare in the common case.
-    """
-    if abs(d) > half:
-        if abs(d) < 1.4 * period:
-            return d - period if d > 0.0 else d + period
-        return d - period * np.rint(d / period)
-    return d
-
-
-@njit(cache=True)
+@compiled
 def _grid(pos, cutoff, period, lo, max_cells, reach):
     """Cell grid: origin (2,), cell size (2,), cells per axis (2,); cells >= cutoff / reach."""
     n = pos.shape[0]
@@ -137,7 +92,7 @@ def _grid(pos, cutoff, period, lo, max_cells, reach):
     return origin, size, ncell
 
 
-@njit(cache=True, inline="always")
+@njit(inline="always")
 def _coord(x, origin, size, m, periodic):
     f = np.floor((x - origin) / size)
     if periodic:
@@ -151,7 +106,7 @@ def _coord(x, origin, size, m, periodic):
     return int(f)
 
 
-@njit(cache=True)
+@compiled
 def _bin(pos, origin, size, ncell, period, cell):
     """Cell id of every particle; ids run along x fastest (``cy * nx + cx``)."""
     n = pos.shape[0]
@@ -163,7 +118,7 @@ def _bin(pos, origin, size, ncell, period, cell):
         cell[i] = cy * ncell[0] + cx
 
 
-@njit(cache=True)
+@compiled
 def _counting_sort(cell, ncells, start, order):
     """Stable counting sort of particles by cell: ``order`` lists particles cell by cell."""
     n = cell.shape[0]
@@ -179,7 +134,7 @@ def _counting_sort(cell, ncells, start, order):
         ptr[c] += 1
 
 
-@njit(cache=True, inline="always")
+@njit(inline="always")
 def _spans(c, m, periodic, reach):
     """Cells c-reach..c+reach along one axis as up to two contiguous spans [a0, b0], [a1, b1].
 
@@ -199,7 +154,7 @@ def _spans(c, m, periodic, reach):
     return max(lo, 0), min(hi, m - 1), 1, 0
 
 
-@njit(cache=True)
+@compiled
 def _bounds(start, cell, ncell, period, reach, order, bound):
     """bound[k]: particles in the stencil cells of particle ``order[k]`` (a row-length bound)."""
     n = order.shape[0]
@@ -296,7 +251,7 @@ def _compact(order, bstart, buf, offsets, nbr):
         nbr[a : a + m] = buf[b : b + m]
 
 
-@njit(cache=True)
+@compiled
 def _sort_rows(offsets, nbr):
     for i in range(offsets.shape[0] - 1):
         a = offsets[i]
@@ -305,57 +260,7 @@ def _sort_rows(offsets, nbr):
             nbr[a:b] = np.sort(nbr[a:b])
 
 
-@njit(cache=True)
-def csr_geometry(pos, offsets, nbr, period, dx, r):
-    """Fill ``dx[k] = r_j - r_i`` (minimum image) and ``r[k] = |dx[k]|`` for every CSR entry."""
-    hx = half_width(period[0])
-    hy = half_width(period[1])
-    n = offsets.shape[0] - 1
-    for i in range(n):
-        xi = pos[i, 0]
-        yi = pos[i, 1]
-        for k in range(offsets[i], offsets[i + 1]):
-            j = nbr[k]
-            d0 = min_image(pos[j, 0] - xi, period[0], hx)
-            d1 = min_image(pos[j, 1] - yi, period[1], hy)
-            dx[k, 0] = d0
-            dx[k, 1] = d1
-            r[k] = np.sqrt(d0 * d0 + d1 * d1)
-
-
-@njit(cache=True)
-def pair_geometry(pos, i, j, period, dx, r):
-    """Fill ``dx`` and ``r`` for a pair list (i, j), same formula as ``PairList.refresh``."""
-    hx = half_width(period[0])
-    hy = half_width(period[1])
-    for k in range(i.shape[0]):
-        d0 = min_image(pos[j[k], 0] - pos[i[k], 0], period[0], hx)
-        d1 = min_image(pos[j[k], 1] - pos[i[k], 1], period[1], hy)
-        dx[k, 0] = d0
-        dx[k, 1] = d1
-        r[k] = np.sqrt(d0 * d0 + d1 * d1)
-
-
-@njit(cache=True)
-def max_displacement(pos, ref, period):
-    """max_i |pos_i - ref_i| under the minimum image (wrapping a particle is not a move).
-
-    NaN positions give NaN, which fails every ``<=`` test and so forces a rebuild.
-    """
-    hx = half_width(period[0])
-    hy = half_width(period[1])
-    n = pos.shape[0]
-    d2 = np.empty(n)
-    for i in range(n):
-        d0 = min_image(pos[i, 0] - ref[i, 0], period[0], hx)
-        d1 = min_image(pos[i, 1] - ref[i, 1], period[1], hy)
-        d2[i] = d0 * d0 + d1 * d1
-    if n == 0:
-        return 0.0
-    return np.sqrt(np.max(d2))
-
-
-@njit(cache=True)
+@compiled
 def _gather_rows(pos, order, out):
     for k in range(order.shape[0]):
         out[k, 0] = pos[order[k], 0]
@@ -401,10 +306,10 @@ class CSRNeighbours:
         if self.dx is None or len(self.dx) != m:
             self.dx = np.empty((m, 2))
             self.r = np.empty(m)
-        csr_geometry(_as_pos(pos), self.offsets, self.nbr, self.period, self.dx, self.r)
+        csr_geometry(as_pos(pos), self.offsets, self.nbr, self.period, self.dx, self.r)
 
 
-def _as_pos(pos: FloatArray) -> FloatArray:
+def as_pos(pos: FloatArray) -> FloatArray:
     return np.ascontiguousarray(pos, dtype=np.float64).reshape(-1, 2)
 
 
@@ -440,7 +345,7 @@ def build_csr(
     """
     if reach not in (1, 2, 3):
         raise ValueError(f"build_csr: reach must be 1, 2 or 3, got {reach}")
-    pos = _as_pos(pos)
+    pos = as_pos(pos)
     n = len(pos)
     if not cutoff > 0:
         raise ValueError(f"build_csr: cutoff must be > 0, got {cutoff}")
@@ -507,186 +412,4 @@ def _static_rule(
     return grp, lse
 
 
-def csr_to_pairs(csr: CSRNeighbours, pos: FloatArray) -> PairList:
-    """The half pair list (i < j, sorted by i then j) of a CSR list, with ``dx`` and ``r``."""
-    rows = csr.rows()
-    nbr = csr.nbr.astype(np.int64)
-    keep = nbr > rows
-    i, j = rows[keep], nbr[keep]
-    order = np.lexsort((j, i))
-    i = np.ascontiguousarray(i[order], dtype=np.intp)
-    j = np.ascontiguousarray(j[order], dtype=np.intp)
-    dx = np.empty((len(i), 2))
-    r = np.empty(len(i))
-    pair_geometry(_as_pos(pos), i, j, csr.period, dx, r)
-    return PairList(i, j, dx, r, csr.n, csr.cutoff)
-
-
-def build_pairs_cells(pos: FloatArray, cutoff: float, box: Box | None = None) -> PairList:
-    """Same result as :func:`mpsbench.physics.neighbours.build_pairs`, from the cell list."""
-    pos = _as_pos(pos)
-    if len(pos) < 2:
-        if not cutoff > 0:
-            raise ValueError(f"build_pairs_cells: cutoff must be > 0, got {cutoff}")
-        empty = np.zeros(0, dtype=np.intp)
-        return PairList(empty, empty.copy(), np.zeros((0, 2)), np.zeros(0), len(pos), cutoff)
-    return csr_to_pairs(build_csr(pos, cutoff, box), pos)
-
-
-class CellNeighbourList:
-    """A CSR list built at ``r_max + skin`` and kept while no particle moved more than skin/2.
-
-    Call :meth:`update` with the current positions before each use; it rebuilds only when a
-    particle has moved more than ``skin / 2`` since the last build (then no pair within
-    ``r_max`` can be missing), when the particle count changed, or after :meth:`invalidate`.
-    Kernels evaluate weights as zero beyond their own r_e, so the extra pairs are harmless.
-
-    ``r_small`` (optional, < r_max): also keep :attr:`small`, the entries of the list within
-    ``r_small + skin`` at build time; it stays valid for ``r_small`` by the same argument, and
-    kernels at the smaller radius (number density, pressure gradient, stabilization at
-    r_e = 2.1 l0 next to a Laplacian at 3.1 l0) scan half as many entries.  ``half``: half
-    lists (each pair once, see :func:`build_csr`).  ``serial``: one-thread kernel builds.
-    """
-
-    def __init__(
-        self,
-        r_max: float,
-        skin: float,
-        box: Box | None = None,
-        sort_rows: bool = False,
-        r_small: float | None = None,
-        half: bool = False,
-        serial: bool = False,
-    ) -> None:
-        if not r_max > 0 or not skin >= 0:
-            raise ValueError(f"CellNeighbourList: need r_max > 0, skin >= 0; got {r_max}, {skin}")
-        if r_small is not None and not 0 < r_small <= r_max:
-            raise ValueError(f"CellNeighbourList: need 0 < r_small <= r_max, got {r_small}")
-        self.r_max = float(r_max)
-        self.skin = float(skin)
-        self.r_small = None if r_small is None else float(r_small)
-        self.half = bool(half)
-        self.serial = bool(serial)
-        self.box = box
-        self.period = box_period(box)
-        self.sort_rows = sort_rows
-        self.csr: CSRNeighbours | None = None
-        self.small: CSRNeighbours | None = None
-        self.group: IntArray | None = None
-        self.loose: NDArray[np.bool_] | None = None
-        self._ref: FloatArray | None = None
-        self.builds = 0
-
-    @staticmethod
-    def padded(r: float, skin: float) -> float:
-        """Cut-off for radius ``r``: the closed support r (1 + SUPPORT_RTOL) + skin, padded."""
-        return (r * (1.0 + SUPPORT_RTOL) + skin) * (1.0 + 1e-12)
-
-    @property
-    def cutoff(self) -> float:
-        """The list's cut-off: r_max + skin, padded so no pair the kernels count is lost."""
-        return self.padded(self.r_max, self.skin)
-
-    def invalidate(self) -> None:
-        self.csr = None
-        self.small = None
-
-    def set_static(
-        self,
-        static: NDArray[np.bool_] | None = None,
-        *,
-        group: IntArray | None = None,
-        loose: NDArray[np.bool_] | None = None,
-    ) -> None:
-        """Which pairs are left out (see :func:`build_csr`); takes effect at the next build."""
-        if static is not None:
-            group = np.where(np.asarray(static, np.bool_), 0, -1).astype(np.int64)
-            loose = None
-        self.group = None if group is None else np.ascontiguousarray(group, np.int64)
-        self.loose = None if loose is None else np.ascontiguousarray(loose, np.bool_)
-        self.invalidate()
-
-    def update(self, pos: FloatArray) -> bool:
-        """Make the list valid for ``pos``; return True when it was rebuilt."""
-        pos = _as_pos(pos)
-        if self.csr is not None and self.csr.n == len(pos) and self._ref is not None:
-            if 2.0 * max_displacement(pos, self._ref, self.period) <= self.skin:
-                return False
-        group = self.group if self.group is not None and len(self.group) == len(pos) else None
-        loose = self.loose if group is not None else None
-        self.csr = build_csr(
-            pos, self.cutoff, self.box, sort_rows=self.sort_rows, group=group, loose=loose,
-            half=self.half, serial=self.serial,
-        )
-        if self.r_small is not None:
-            self.small = within(
-                self.csr, pos, self.padded(self.r_small, self.skin), serial=self.serial
-            )
-        self._ref = pos.copy()
-        self.builds += 1
-        return True
-
-
-@kernel
-def _count_within(pos, offsets, nbr, period, cut2, counts):
-    hx = half_width(period[0])
-    hy = half_width(period[1])
-    for i in prange(offsets.shape[0] - 1):
-        xi = pos[i, 0]
-        yi = pos[i, 1]
-        m = 0
-        for k in range(offsets[i], offsets[i + 1]):
-            j = nbr[k]
-            d0 = min_image(pos[j, 0] - xi, period[0], hx)
-            d1 = min_image(pos[j, 1] - yi, period[1], hy)
-            m += d0 * d0 + d1 * d1 <= cut2
-        counts[i] = m
-
-
-@kernel
-def _fill_within(pos, offsets, nbr, period, cut2, new_offsets, out):
-    hx = half_width(period[0])
-    hy = half_width(period[1])
-    for i in prange(offsets.shape[0] - 1):
-        xi = pos[i, 0]
-        yi = pos[i, 1]
-        t = new_offsets[i]
-        for k in range(offsets[i], offsets[i + 1]):
-            j = nbr[k]
-            d0 = min_image(pos[j, 0] - xi, period[0], hx)
-            d1 = min_image(pos[j, 1] - yi, period[1], hy)
-            if d0 * d0 + d1 * d1 <= cut2:
-                out[t] = j
-                t += 1
-
-
-def within(
-    csr: CSRNeighbours, pos: FloatArray, cutoff: float, serial: bool = False
-) -> CSRNeighbours:
-    """The sub-list of ``csr`` within ``cutoff`` at ``pos`` (same row order, CSR again)."""
-    pos = _as_pos(pos)
-    counts = np.empty(csr.n, np.int64)
-    cut2 = float(cutoff) ** 2
-    pick(_count_within, serial)(pos, csr.offsets, csr.nbr, csr.period, cut2, counts)
-    offsets = np.zeros(csr.n + 1, np.int64)
-    np.cumsum(counts, out=offsets[1:])
-    nbr = np.empty(int(offsets[-1]), np.uint32)
-    pick(_fill_within, serial)(pos, csr.offsets, csr.nbr, csr.period, cut2, offsets, nbr)
-    return CSRNeighbours(offsets, nbr, csr.n, float(cutoff), csr.period, csr.order)
-
-
-__all__ = [
-    "CSRNeighbours",
-    "CellNeighbourList",
-    "box_lo",
-    "box_period",
-    "build_csr",
-    "build_pairs_cells",
-    "csr_geometry",
-    "csr_to_pairs",
-    "max_displacement",
-    "half_width",
-    "min_image",
-    "pair_geometry",
-    "within",
-]
+__all__ = ["CSRNeighbours", "as_pos", "build_csr"]

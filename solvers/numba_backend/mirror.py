@@ -16,6 +16,8 @@ pivoting, as LAPACK's, so the two backends agree to rounding.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 from numpy.typing import NDArray
@@ -23,9 +25,11 @@ from numpy.typing import NDArray
 from mpsbench.physics.boundaries import extrapolate_through_wall, mirror_points
 from mpsbench.physics.particles import Box, Particles
 
-from ._jit import kernel, pick
-from .cells import CellNeighbourList, box_period, build_csr, half_width, min_image
-from .kernels import _w_in
+from . import formulas as fm
+from ._jit import factory, pick
+from .cells import build_csr
+from .geometry import box_period, half_width, min_image
+from .neighbour_list import CellNeighbourList
 
 FloatArray = NDArray[np.float64]
 
@@ -80,78 +84,81 @@ def _solve3(m, b0, b1, b2):
     return det, x[0, 0], x[0, 1]
 
 
-@kernel
-def mirror_fit(offsets, nbr, pos, period, nf, vel, wcode, re, out):
-    """Fluid velocity at each mirror point (rows nf.. of ``pos``) from fluid rows 0..nf-1.
+@factory
+def mirror_fit(wt: fm.Weight) -> Any:
+    """Fluid velocity at each mirror point (rows nf.. of ``pos``) from fluid rows 0..nf-1:
+    ``(offsets, nbr, pos, period, nf, vel, re, out)``, out (n_mirror, 2); NaN where a mirror
+    point has no fluid particle within ``re``."""
+    wfun = wt.w
 
-    out (n_mirror, 2); NaN where a mirror point has no fluid particle within ``re``.
-    """
-    nm = offsets.shape[0] - 1 - nf
-    hx = half_width(period[0])
-    hy = half_width(period[1])
-    inv_re = 1.0 / re
-    floor = 0.05 * re
-    for q in prange(nm):
-        i = nf + q
-        xi = pos[i, 0]
-        yi = pos[i, 1]
-        m00 = m01 = m02 = m11 = m12 = m22 = 0.0
-        r00 = r01 = r10 = r11 = r20 = r21 = 0.0
-        count = 0
-        for k in range(offsets[i], offsets[i + 1]):
-            j = nbr[k]
-            if j >= nf:
+    def mirror_fit(offsets, nbr, pos, period, nf, vel, re, out):
+        nm = offsets.shape[0] - 1 - nf
+        hx = half_width(period[0])
+        hy = half_width(period[1])
+        floor = 0.05 * re
+        for q in prange(nm):
+            i = nf + q
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            m00 = m01 = m02 = m11 = m12 = m22 = 0.0
+            r00 = r01 = r10 = r11 = r20 = r21 = 0.0
+            count = 0
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                if j >= nf:
+                    continue
+                dx = min_image(pos[j, 0] - xi, period[0], hx)
+                dy = min_image(pos[j, 1] - yi, period[1], hy)
+                r = np.sqrt(dx * dx + dy * dy)
+                if not r <= re:
+                    continue
+                count += 1
+                sx = dx / re
+                sy = dy / re
+                w = wfun(max(r, floor), re)
+                m00 += w
+                m01 += w * sx
+                m02 += w * sy
+                m11 += w * sx * sx
+                m12 += w * sx * sy
+                m22 += w * sy * sy
+                u = vel[j, 0]
+                v = vel[j, 1]
+                r00 += w * u
+                r01 += w * v
+                r10 += w * sx * u
+                r11 += w * sx * v
+                r20 += w * sy * u
+                r21 += w * sy * v
+            if not m00 > 0.0:
+                out[q, 0] = np.nan
+                out[q, 1] = np.nan
                 continue
-            dx = min_image(pos[j, 0] - xi, period[0], hx)
-            dy = min_image(pos[j, 1] - yi, period[1], hy)
-            r = np.sqrt(dx * dx + dy * dy)
-            if not r <= re:
-                continue
-            count += 1
-            sx = dx / re
-            sy = dy / re
-            w = _w_in(wcode, max(r, floor), re, inv_re)
-            m00 += w
-            m01 += w * sx
-            m02 += w * sy
-            m11 += w * sx * sx
-            m12 += w * sx * sy
-            m22 += w * sy * sy
-            u = vel[j, 0]
-            v = vel[j, 1]
-            r00 += w * u
-            r01 += w * v
-            r10 += w * sx * u
-            r11 += w * sx * v
-            r20 += w * sy * u
-            r21 += w * sy * v
-        if not m00 > 0.0:
-            out[q, 0] = np.nan
-            out[q, 1] = np.nan
-            continue
-        out[q, 0] = r00 / m00
-        out[q, 1] = r01 / m00
-        if count >= 3:
-            mat = np.empty((3, 3))
-            mat[0, 0] = m00
-            mat[0, 1] = m01
-            mat[0, 2] = m02
-            mat[1, 0] = m01
-            mat[1, 1] = m11
-            mat[1, 2] = m12
-            mat[2, 0] = m02
-            mat[2, 1] = m12
-            mat[2, 2] = m22
-            det, a0, a1 = _solve3(
-                mat, np.array([r00, r01]), np.array([r10, r11]), np.array([r20, r21])
-            )
-            if abs(det) > 1e-8 * m00 * m00 * m00:
-                out[q, 0] = a0
-                out[q, 1] = a1
+            out[q, 0] = r00 / m00
+            out[q, 1] = r01 / m00
+            if count >= 3:
+                mat = np.empty((3, 3))
+                mat[0, 0] = m00
+                mat[0, 1] = m01
+                mat[0, 2] = m02
+                mat[1, 0] = m01
+                mat[1, 1] = m11
+                mat[1, 2] = m12
+                mat[2, 0] = m02
+                mat[2, 1] = m12
+                mat[2, 2] = m22
+                det, a0, a1 = _solve3(
+                    mat, np.array([r00, r01]), np.array([r10, r11]), np.array([r20, r21])
+                )
+                if abs(det) > 1e-8 * m00 * m00 * m00:
+                    out[q, 0] = a0
+                    out[q, 1] = a1
+
+    return mirror_fit
 
 
 def mirror_velocity(
-    p: Particles, wcode: int, re: float, box: Box, serial: bool = False
+    p: Particles, wt: fm.Weight, re: float, box: Box, serial: bool = False
 ) -> FloatArray:
     """Boundary velocities extrapolated so the wall velocity holds on the wall line.
 
@@ -167,9 +174,9 @@ def mirror_velocity(
     group[nf:] = 1
     csr = build_csr(both, CellNeighbourList.padded(re, 0.0), box, group=group, serial=serial)
     u_mirror = np.empty((len(bnd), 2))
-    pick(mirror_fit, serial)(
+    pick(mirror_fit(wt), serial)(
         csr.offsets, csr.nbr, both, box_period(box), nf, np.ascontiguousarray(p.vel[fluid]),
-        wcode, float(re), u_mirror,
+        float(re), u_mirror,
     )
     vel[bnd] = extrapolate_through_wall(p.vel[bnd], u_mirror)
     return vel

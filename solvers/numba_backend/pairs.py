@@ -13,29 +13,24 @@ acc[1]``).  The result does not depend on the number of threads (1 or more: the 
 the same sums); it scales to two threads, the machines this project targets.  Per-chunk
 buffers are zeroed inside the kernels.
 
-Formulas, masks and the closed support are those of :mod:`.kernels` (and so of
-:mod:`mpsbench.physics.operators` and the reference backend); only the order of the sums differs.
+Kernels that evaluate a model are made by factories from the compiled models (:mod:`.formulas`),
+as in :mod:`.kernels`; formulas, masks and the closed support are the same there (and so those
+of :mod:`mpsbench.physics` and the reference backend); only the order of the sums differs.
 """
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit, prange
+from typing import Any
 
-from ._jit import kernel
-from .cells import half_width
-from .kernels import (
-    FLUID,
-    SUPPORT,
-    _coef_in,
-    _dw_in,
-    _inside,
-    _integer_gamma,
-    _sep,
-    _state_of,
-    _w_in,
-    _w_over_r2,
-)
+import numpy as np
+from numba import prange
+
+from . import formulas as fm
+from ._jit import compiled, factory, kernel
+from .formulas import FLUID, SUPPORT, inside
+from .geometry import half_width
+from .kernels import positive_weight, sep
+from .steps import integer_gamma, state_of
 
 CHUNKS = 2
 
@@ -55,77 +50,105 @@ def chunk_bounds(offsets: np.ndarray, chunks: int = CHUNKS) -> np.ndarray:
 # --------------------------------------------------------------------------- Laplacian
 
 
-@kernel
-def laplacian_pairs(offsets, nbr, pos, period, phi, model, wcode, re, pref, bounds, acc, rows):
+@factory
+def laplacian_pairs(wt: fm.Weight, lap: fm.Laplacian) -> Any:
     """sum_j c_ij (phi_j - phi_i) of a (n, 2) field into acc (CHUNKS, n, 2); sum_j |c_ij| into
-    rows (CHUNKS, n).  c_ij = c_ji, so j gets -c (phi_j - phi_i) and the same |c|."""
-    px = period[0]
-    py = period[1]
-    hx = half_width(px)
-    hy = half_width(py)
-    inv_re = 1.0 / re
-    re_s = re * SUPPORT
-    for c in prange(bounds.shape[0] - 1):
-        a = acc[c]
-        ra = rows[c]
-        a[:, :] = 0.0
-        ra[:] = 0.0
-        for i in range(bounds[c], bounds[c + 1]):
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            ui = phi[i, 0]
-            vi = phi[i, 1]
-            s0 = 0.0
-            s1 = 0.0
-            sa = 0.0
-            for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                _, _, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
-                r = np.sqrt(r2)
-                cij = _coef_in(model, wcode, r, min(r, re), r2, re, inv_re, pref)
-                cij = cij if _inside(r, r2, re_s) else 0.0
-                d0 = cij * (phi[j, 0] - ui)
-                d1 = cij * (phi[j, 1] - vi)
-                ac = abs(cij)
-                s0 += d0
-                s1 += d1
-                sa += ac
-                a[j, 0] -= d0
-                a[j, 1] -= d1
-                ra[j] += ac
-            a[i, 0] += s0
-            a[i, 1] += s1
-            ra[i] += sa
+    rows (CHUNKS, n).  c_ij = c_ji, so j gets -c (phi_j - phi_i) and the same |c|.  Arguments
+    ``(offsets, nbr, pos, period, phi, re, pref, s, bounds, acc, rows)`` (``pref``, ``s`` as in
+    :func:`.kernels.laplacian_field`)."""
+    coef = fm.laplacian_pair(wt, lap)
+
+    def laplacian_pairs(offsets, nbr, pos, period, phi, re, pref, s, bounds, acc, rows):
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        re_s = re * SUPPORT
+        for c in prange(bounds.shape[0] - 1):
+            a = acc[c]
+            ra = rows[c]
+            a[:, :] = 0.0
+            ra[:] = 0.0
+            for i in range(bounds[c], bounds[c + 1]):
+                xi = pos[i, 0]
+                yi = pos[i, 1]
+                ui = phi[i, 0]
+                vi = phi[i, 1]
+                s0 = 0.0
+                s1 = 0.0
+                sa = 0.0
+                for k in range(offsets[i], offsets[i + 1]):
+                    j = nbr[k]
+                    _, _, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
+                    r = np.sqrt(r2)
+                    cij = pref * coef(r, re, s, i, j)
+                    cij = cij if inside(r, r2, re_s) else 0.0
+                    d0 = cij * (phi[j, 0] - ui)
+                    d1 = cij * (phi[j, 1] - vi)
+                    ac = abs(cij)
+                    s0 += d0
+                    s1 += d1
+                    sa += ac
+                    a[j, 0] -= d0
+                    a[j, 1] -= d1
+                    ra[j] += ac
+                a[i, 0] += s0
+                a[i, 1] += s1
+                ra[i] += sa
+
+    return laplacian_pairs
 
 
-# --------------------------------------------------------------------------- density, EOS
+# --------------------------------------------------------------------------- sums, EOS
+
+
+@factory
+def pair_sum_pairs(wt: fm.Weight, formula: Any) -> Any:
+    """sum_j formula(r_ij, W, W', W'') into acc (CHUNKS, n) (a symmetric term: both ends get
+    it); ``(offsets, nbr, pos, period, re, bounds, acc)``.  The number density is
+    :func:`density_pairs`."""
+    term = fm.pair_of(wt, formula)
+
+    def pair_sum_pairs(offsets, nbr, pos, period, re, bounds, acc):
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        re_s = re * SUPPORT
+        for c in prange(bounds.shape[0] - 1):
+            a = acc[c]
+            a[:] = 0.0
+            for i in range(bounds[c], bounds[c + 1]):
+                xi = pos[i, 0]
+                yi = pos[i, 1]
+                s = 0.0
+                for k in range(offsets[i], offsets[i + 1]):
+                    j = nbr[k]
+                    _, _, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
+                    r = np.sqrt(r2)
+                    w = term(r, re)
+                    w = w if inside(r, r2, re_s) else 0.0
+                    s += w
+                    a[j] += w
+                a[i] += s
+
+    return pair_sum_pairs
+
+
+def density_pairs(wt: fm.Weight) -> Any:
+    """sum_j W_ij into acc (CHUNKS, n): the kernel of :func:`pair_sum_pairs` for W."""
+    return pair_sum_pairs(wt, fm.W_ONLY)
 
 
 @kernel
-def density_pairs(offsets, nbr, pos, period, wcode, re, bounds, acc):
-    """sum_j W_ij into acc (CHUNKS, n) (W symmetric: both ends get it)."""
-    px = period[0]
-    py = period[1]
-    hx = half_width(px)
-    hy = half_width(py)
-    inv_re = 1.0 / re
-    re_s = re * SUPPORT
-    for c in prange(bounds.shape[0] - 1):
-        a = acc[c]
-        a[:] = 0.0
-        for i in range(bounds[c], bounds[c + 1]):
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            s = 0.0
-            for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                _, _, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
-                r = np.sqrt(r2)
-                w = _w_in(wcode, min(r, re), re, inv_re)
-                w = w if _inside(r, r2, re_s) else 0.0
-                s += w
-                a[j] += w
-            a[i] += s
+def sum_chunks(acc, out):
+    """out = acc[0] + acc[1] for (CHUNKS, n) accumulators."""
+    chunks = acc.shape[0]
+    for i in prange(out.shape[0]):
+        s = acc[0, i]
+        for c in range(1, chunks):
+            s += acc[c, i]
+        out[i] = s
 
 
 @kernel
@@ -137,61 +160,57 @@ def pressure_from(
     n = n_out.shape[0]
     chunks = acc.shape[0]
     threshold = beta * n0
-    igamma = _integer_gamma(gamma)
+    igamma = integer_gamma(gamma)
     for i in prange(n):
         s = acc[0, i]
         for c in range(1, chunks):
             s += acc[c, i]
-        _state_of(i, s + static_n[i], kind, n0, tait, prefactor, gamma, igamma, clip, threshold,
-                  n_out, p_out, surface, inner)
+        state_of(i, s + static_n[i], kind, n0, tait, prefactor, gamma, igamma, clip, threshold,
+                 n_out, p_out, surface, inner)
 
 
 # --------------------------------------------------------------------------- pressure gradient
 
 
-@kernel
-def pmin_pairs(offsets, nbr, pos, period, p, mask, wcode, re, bounds, acc):
+@factory
+def pmin_pairs(wt: fm.Weight) -> Any:
     """min of p_j over neighbours with W_ij > 0, both ends masked, into acc (CHUNKS, n)
-    (initialised to p)."""
-    px = period[0]
-    py = period[1]
-    hx = half_width(px)
-    hy = half_width(py)
-    inv_re = 1.0 / re
-    sure_in = re * re * (1.0 - 1e-9)
-    sure_out = re * re * (1.0 + 1e-9)
-    for c in prange(bounds.shape[0] - 1):
-        a = acc[c]
-        a[:] = p
-        for i in range(bounds[c], bounds[c + 1]):
-            if not mask[i]:
-                continue
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            pi = p[i]
-            for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                if not mask[j]:
+    (initialised to p); ``(offsets, nbr, pos, period, p, mask, re, bounds, acc)``."""
+    positive = positive_weight(wt)
+
+    def pmin_pairs(offsets, nbr, pos, period, p, mask, re, bounds, acc):
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        for c in prange(bounds.shape[0] - 1):
+            a = acc[c]
+            a[:] = p
+            for i in range(bounds[c], bounds[c + 1]):
+                if not mask[i]:
                     continue
-                pj = p[j]
-                if pj >= a[i] and pi >= a[j]:  # neither end can lower its minimum
-                    continue
-                _, _, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
-                if r2 == 0.0 or r2 > sure_out:
-                    continue
-                ok = r2 < sure_in
-                if not ok:
-                    r = np.sqrt(r2)
-                    ok = r <= re and _w_in(wcode, r, re, inv_re) > 0.0
-                if ok:
-                    if pj < a[i]:
-                        a[i] = pj
-                    if pi < a[j]:
-                        a[j] = pi
+                xi = pos[i, 0]
+                yi = pos[i, 1]
+                pi = p[i]
+                for k in range(offsets[i], offsets[i + 1]):
+                    j = nbr[k]
+                    if not mask[j]:
+                        continue
+                    pj = p[j]
+                    if pj >= a[i] and pi >= a[j]:  # neither end can lower its minimum
+                        continue
+                    _, _, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
+                    if positive(r2, re):
+                        if pj < a[i]:
+                            a[i] = pj
+                        if pi < a[j]:
+                            a[j] = pi
+
+    return pmin_pairs
 
 
-@njit(cache=True)
-def _combine_min(acc, out):
+@compiled
+def combine_min(acc, out):
     for i in range(out.shape[0]):
         m = acc[0, i]
         for c in range(1, acc.shape[0]):
@@ -200,55 +219,55 @@ def _combine_min(acc, out):
         out[i] = m
 
 
-@kernel
-def gradient_pairs(
-    offsets, nbr, pos, period, p, pmin, mask, kind, model, wcode, re, bounds, acc
-):
-    """sum_j P_ij r_ij W_ij / r_ij^2 (without D/n0) into acc (CHUNKS, n, 2), as
-    :func:`.kernels.pressure_gradient`: pairs with both ends in ``mask``; 1 pgm1
-    P_ij = p_j - pmin_i (j: p_i - pmin_j), 2 pgm2 (p_i + p_j) - (pmin_i + pmin_j), 3 pgm3
-    p_i + p_j.  Pairs with no fluid end are skipped (only fluid rows are used)."""
-    px = period[0]
-    py = period[1]
-    hx = half_width(px)
-    hy = half_width(py)
-    inv_re = 1.0 / re
-    re_s = re * SUPPORT
-    for c in prange(bounds.shape[0] - 1):
-        a = acc[c]
-        a[:, :] = 0.0
-        for i in range(bounds[c], bounds[c + 1]):
-            if not mask[i]:
-                continue
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            pi = p[i]
-            pmi = pmin[i]
-            fi = kind[i] == FLUID
-            gx = 0.0
-            gy = 0.0
-            for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                if not mask[j] or not (fi or kind[j] == FLUID):
+@factory
+def gradient_pairs(wt: fm.Weight, grad: fm.Gradient) -> Any:
+    """sum_j P_ij r_ij radial(r_ij, W_ij) (without the prefactor) into acc (CHUNKS, n, 2), as
+    :func:`.kernels.pressure_gradient`: pairs with both ends in ``mask``; j gets the model's
+    pair value seen from j, along -r_ij.  Pairs with no fluid end are skipped (only fluid rows
+    are used).  ``(offsets, nbr, pos, period, p, pmin, mask, kind, re, bounds, acc)``."""
+    w_of = fm.number_density_pair(wt)
+    pair = grad.pair
+    radial = grad.radial
+
+    def gradient_pairs(offsets, nbr, pos, period, p, pmin, mask, kind, re, bounds, acc):
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        re_s = re * SUPPORT
+        for c in prange(bounds.shape[0] - 1):
+            a = acc[c]
+            a[:, :] = 0.0
+            for i in range(bounds[c], bounds[c + 1]):
+                if not mask[i]:
                     continue
-                dx, dy, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
-                r = np.sqrt(r2)
-                q = _w_over_r2(wcode, r, r2, re, inv_re, re_s)
-                if model == 1:
-                    ci = (p[j] - pmi) * q
-                    cj = (pi - pmin[j]) * q
-                elif model == 2:
-                    ci = ((pi + p[j]) - (pmi + pmin[j])) * q
-                    cj = ci
-                else:
-                    ci = (pi + p[j]) * q
-                    cj = ci
-                gx += ci * dx
-                gy += ci * dy
-                a[j, 0] -= cj * dx
-                a[j, 1] -= cj * dy
-            a[i, 0] += gx
-            a[i, 1] += gy
+                xi = pos[i, 0]
+                yi = pos[i, 1]
+                pi = p[i]
+                pmi = pmin[i]
+                fi = kind[i] == FLUID
+                gx = 0.0
+                gy = 0.0
+                for k in range(offsets[i], offsets[i + 1]):
+                    j = nbr[k]
+                    if not mask[j] or not (fi or kind[j] == FLUID):
+                        continue
+                    dx, dy, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
+                    r = np.sqrt(r2)
+                    q = radial(r, w_of(r, re))
+                    q = q if inside(r, r2, re_s) else 0.0
+                    pj = p[j]
+                    pmj = pmin[j]
+                    ci = pair(pi, pj, pmi, pmj) * q
+                    cj = pair(pj, pi, pmj, pmi) * q
+                    gx += ci * dx
+                    gy += ci * dy
+                    a[j, 0] -= cj * dx
+                    a[j, 1] -= cj * dy
+                a[i, 0] += gx
+                a[i, 1] += gy
+
+    return gradient_pairs
 
 
 @kernel
@@ -293,7 +312,7 @@ def predictor_from(pos, vel, acc, use_lap, nu, gx, gy, dt, kind):
         pos[i, 1] += dt * vel[i, 1]
 
 
-@njit(cache=True)
+@compiled
 def fluid_row_max(rows, kind):
     """max over fluid particles of rows[0] + rows[1] (0.0 without fluid)."""
     m = 0.0
@@ -362,7 +381,7 @@ def collision_pairs(
             fi = kind[i] == FLUID
             for k in range(offsets[i], offsets[i + 1]):
                 j = nbr[k]
-                dx, dy, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
+                dx, dy, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
                 if r2 > reject or r2 == 0.0 or not np.sqrt(r2) < distance:
                     continue
                 fj = kind[j] == FLUID
@@ -381,67 +400,74 @@ def collision_pairs(
                         a[j, 1] += cj * dy
 
 
-@kernel
-def stabilization_pairs(
-    offsets, nbr, pos, period, vel, kind, inner, with_walls, wcode, re, bounds, acc
-):
-    """sum_j W'_ij (u_j - u_i) into acc (CHUNKS, n, 2) for ``inner`` rows (the others get 0);
-    without ``with_walls`` only fluid-fluid pairs count."""
-    px = period[0]
-    py = period[1]
-    hx = half_width(px)
-    hy = half_width(py)
-    inv_re = 1.0 / re
-    re_s = re * SUPPORT
-    for c in prange(bounds.shape[0] - 1):
-        a = acc[c]
-        a[:, :] = 0.0
-        for i in range(bounds[c], bounds[c + 1]):
-            ii = inner[i]
-            if not with_walls and kind[i] != FLUID:
-                continue
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            ui = vel[i, 0]
-            vi = vel[i, 1]
-            s0 = 0.0
-            s1 = 0.0
-            for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                ij = inner[j]
-                if not (ii or ij):
+@factory
+def stabilization_pairs(wt: fm.Weight) -> Any:
+    """sum_j pair_ij (u_j - u_i) of the stabilization into acc (CHUNKS, n, 2) for ``inner``
+    rows (the others get 0); without ``with_walls`` only fluid-fluid pairs count.  Arguments
+    ``(offsets, nbr, pos, period, vel, kind, inner, with_walls, re, bounds, acc)``."""
+    term = fm.stabilization_pair(wt)
+
+    def stabilization_pairs(offsets, nbr, pos, period, vel, kind, inner, with_walls, re, bounds,
+                            acc):
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        re_s = re * SUPPORT
+        for c in prange(bounds.shape[0] - 1):
+            a = acc[c]
+            a[:, :] = 0.0
+            for i in range(bounds[c], bounds[c + 1]):
+                ii = inner[i]
+                if not with_walls and kind[i] != FLUID:
                     continue
-                if not with_walls and kind[j] != FLUID:
-                    continue
-                _, _, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
-                r = np.sqrt(r2)
-                dw = _dw_in(wcode, min(r, re), re, inv_re)
-                dw = dw if _inside(r, r2, re_s) else 0.0
-                d0 = dw * (vel[j, 0] - ui)
-                d1 = dw * (vel[j, 1] - vi)
-                s0 += d0
-                s1 += d1
-                if ij:
-                    a[j, 0] -= d0
-                    a[j, 1] -= d1
-            if ii:
-                a[i, 0] += s0
-                a[i, 1] += s1
+                xi = pos[i, 0]
+                yi = pos[i, 1]
+                ui = vel[i, 0]
+                vi = vel[i, 1]
+                s0 = 0.0
+                s1 = 0.0
+                for k in range(offsets[i], offsets[i + 1]):
+                    j = nbr[k]
+                    ij = inner[j]
+                    if not (ii or ij):
+                        continue
+                    if not with_walls and kind[j] != FLUID:
+                        continue
+                    _, _, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
+                    r = np.sqrt(r2)
+                    dw = term(r, re)
+                    dw = dw if inside(r, r2, re_s) else 0.0
+                    d0 = dw * (vel[j, 0] - ui)
+                    d1 = dw * (vel[j, 1] - vi)
+                    s0 += d0
+                    s1 += d1
+                    if ij:
+                        a[j, 0] -= d0
+                        a[j, 1] -= d1
+                if ii:
+                    a[i, 0] += s0
+                    a[i, 1] += s1
+
+    return stabilization_pairs
 
 
 __all__ = [
     "CHUNKS",
     "add_from",
     "chunk_bounds",
-    "corrector_from",
-    "fluid_row_max",
-    "predictor_from",
     "collision_pairs",
+    "combine_min",
+    "corrector_from",
     "density_pairs",
+    "fluid_row_max",
     "gradient_pairs",
     "laplacian_pairs",
+    "pair_sum_pairs",
     "pmin_pairs",
+    "predictor_from",
     "pressure_from",
     "pressure_increment_from",
     "stabilization_pairs",
+    "sum_chunks",
 ]

@@ -1,120 +1,150 @@
-"""numba pieces of the WC-MPS and diffusion steps that are not neighbour operators.
+"""numba pieces of the WC-MPS and diffusion steps that are not neighbour sums of a model.
 
-Per-particle updates (predictor, corrector, equation of state fused with the number density),
-the setup-time constants (n0, lambda, static number density) and the diffusion operator held
-as per-entry coefficients of the CSR list.  Formulas and the order of floating-point operations
-follow :mod:`mpsbench.solvers.reference.solver` line by line where that is cheap, so that the two
-backends agree to rounding; the conventions (kinds, masks, ``offsets, nbr, pos, period``) are
-those of :mod:`.kernels`.  Units are SI.
+Per-particle updates (predictor, corrector, the equation of state fused with the number density),
+the static number density of rigid pairs, the health summary the runner asks for after each
+step, and the diffusion operator held as per-entry coefficients of the CSR list.  Formulas and
+the order of floating-point operations follow :mod:`mpsbench.run.scheme` and the reference
+backend where that is cheap, so that the backends agree to rounding; the conventions (kinds,
+masks, ``offsets, nbr, pos, period``) are those of :mod:`.kernels`.  Units are SI.
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit, prange
 
-from ._jit import kernel
-from .cells import half_width
-from .kernels import (
-    DIM,
-    FLUID,
-    SUPPORT,
-    _coef_in,
-    _inside,
-    _integer_gamma,
-    _sep,
-    _state_of,
-    _w_in,
-    _w_over_r2,
-)
+from . import formulas as fm
+from ._jit import compiled, factory, kernel
+from .formulas import DUMMY, FLUID, RADIAL, SUPPORT, inside
+from .geometry import half_width
+from .kernels import sep
 
-# --------------------------------------------------------------------------- setup constants
+# --------------------------------------------------------------------------- equation of state
 
 
-@njit(cache=True)
-def row_constants(offsets, nbr, pos, period, wcode, re, i):
-    """(sum_j W_ij, sum_j r_ij^2 W_ij) over the row of particle ``i``: n0 and n0 * lambda."""
-    px = period[0]
-    py = period[1]
-    hx = half_width(px)
-    hy = half_width(py)
-    inv_re = 1.0 / re
-    re_s = re * SUPPORT
-    xi = pos[i, 0]
-    yi = pos[i, 1]
-    s = 0.0
-    s2 = 0.0
-    for k in range(offsets[i], offsets[i + 1]):
-        _, _, r2 = _sep(pos, nbr[k], xi, yi, px, py, hx, hy)
-        r = np.sqrt(r2)
-        if _inside(r, r2, re_s):
-            w = _w_in(wcode, min(r, re), re, inv_re)
-            s += w
-            s2 += r * r * w
-    return s, s2
+@njit(inline="always")
+def power(x, gamma, igamma):
+    """x**gamma; by repeated squaring when gamma is a whole number 1..16 (``igamma`` > 0).
+
+    pow() costs about as much as a dozen neighbour terms; squaring is a few multiplications
+    and differs from it by a few ulp (Tait's gamma = 7: x * x^2 * x^4).
+    """
+    if igamma == 0:
+        return x**gamma
+    result = 1.0
+    base = x
+    e = igamma
+    while e > 0:
+        if e & 1:
+            result *= base
+        base *= base
+        e >>= 1
+    return result
 
 
-@kernel
-def static_density(offsets, nbr, pos, period, wcode, re, group, loose, out):
-    """sum_j W_ij over the static pairs of each particle (same rigid group, not both loose)."""
-    n = offsets.shape[0] - 1
-    px = period[0]
-    py = period[1]
-    hx = half_width(px)
-    hy = half_width(py)
-    inv_re = 1.0 / re
-    re_s = re * SUPPORT
-    for i in prange(n):
-        s = 0.0
-        gi = group[i]
-        if gi >= 0:
+@njit(inline="always")
+def integer_gamma(gamma):
+    """The ``igamma`` of :func:`power`: gamma when it is a whole number 1..16, else 0."""
+    return int(gamma) if gamma == np.floor(gamma) and 1.0 <= gamma <= 16.0 else 0
+
+
+@njit(inline="always")
+def state_of(i, ni, kind, n0, tait, prefactor, gamma, igamma, clip, threshold, n_out, p_out,
+             surface, inner):
+    """Particle i's number density ``ni`` -> pressure, free surface and inner flags.
+
+    Tait: p = prefactor ((n/n0)^gamma - 1), prefactor rho0 c0^2 / gamma; linear: p =
+    prefactor (n/n0 - 1), prefactor rho0 c0^2.  Negative pressure clipped to 0 with ``clip``
+    (np.maximum(p, 0): NaN stays NaN).  Fluid, wall and inflow particles carry pressure; those
+    with n < ``threshold`` (beta n0) are free surface and get p = 0, as do dummy particles.
+    ``inner`` = fluid and not free surface (the particles the stabilization acts on).
+    """
+    n_out[i] = ni
+    ratio = ni / n0
+    if tait:
+        pres = prefactor * (power(ratio, gamma, igamma) - 1.0)
+    else:
+        pres = prefactor * (ratio - 1.0)
+    if clip and not pres >= 0.0:
+        pres = pres if pres != pres else 0.0
+    k_i = kind[i]
+    carries = k_i != DUMMY
+    fs = carries and ni < threshold
+    surface[i] = fs
+    inner[i] = (k_i == FLUID) and not fs
+    p_out[i] = 0.0 if (fs or not carries) else pres
+
+
+@factory
+def density_pressure(wt: fm.Weight) -> Any:
+    """Number density, equation of state and free surface in one pass (the scheme's step 3):
+    n_i = sum_j W_ij + static_n_i; the rest as :func:`state_of`.  Arguments ``(offsets, nbr,
+    pos, period, re, static_n, kind, n0, tait, prefactor, gamma, clip, beta, n_out, p_out,
+    surface, inner)``."""
+    w_of = fm.number_density_pair(wt)
+
+    def density_pressure(offsets, nbr, pos, period, re, static_n, kind, n0, tait, prefactor,
+                         gamma, clip, beta, n_out, p_out, surface, inner):
+        n = offsets.shape[0] - 1
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        re_s = re * SUPPORT
+        threshold = beta * n0
+        igamma = integer_gamma(gamma)
+        for i in prange(n):
             xi = pos[i, 0]
             yi = pos[i, 1]
+            s = 0.0
             for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                if group[j] != gi or (loose[i] and loose[j]):
-                    continue
-                _, _, r2 = _sep(pos, j, xi, yi, px, py, hx, hy)
+                _, _, r2 = sep(pos, nbr[k], xi, yi, px, py, hx, hy)
                 r = np.sqrt(r2)
-                w = _w_in(wcode, min(r, re), re, inv_re)
-                s += w if _inside(r, r2, re_s) else 0.0
-        out[i] = s
-    return out
+                w = w_of(r, re)
+                s += w if inside(r, r2, re_s) else 0.0
+            state_of(i, s + static_n[i], kind, n0, tait, prefactor, gamma, igamma, clip,
+                     threshold, n_out, p_out, surface, inner)
+        return n_out
+
+    return density_pressure
+
+
+@factory
+def static_density(wt: fm.Weight) -> Any:
+    """sum_j W_ij over the static pairs of each particle (same rigid group, not both loose):
+    ``(offsets, nbr, pos, period, re, group, loose, out)``."""
+    w_of = fm.number_density_pair(wt)
+
+    def static_density(offsets, nbr, pos, period, re, group, loose, out):
+        n = offsets.shape[0] - 1
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        re_s = re * SUPPORT
+        for i in prange(n):
+            s = 0.0
+            gi = group[i]
+            if gi >= 0:
+                xi = pos[i, 0]
+                yi = pos[i, 1]
+                for k in range(offsets[i], offsets[i + 1]):
+                    j = nbr[k]
+                    if group[j] != gi or (loose[i] and loose[j]):
+                        continue
+                    _, _, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
+                    r = np.sqrt(r2)
+                    w = w_of(r, re)
+                    s += w if inside(r, r2, re_s) else 0.0
+            out[i] = s
+        return out
+
+    return static_density
 
 
 # --------------------------------------------------------------------------- flow step
-
-
-@kernel
-def density_pressure(
-    offsets, nbr, pos, period, wcode, re, static_n, kind, n0, tait, prefactor, gamma, clip,
-    beta, n_out, p_out, surface, inner,
-):
-    """Number density, equation of state and free surface in one pass (reference ``_pressure``).
-
-    n_i = sum_j W_ij + static_n_i; the rest as :func:`.kernels._state_of`.
-    """
-    n = offsets.shape[0] - 1
-    px = period[0]
-    py = period[1]
-    hx = half_width(px)
-    hy = half_width(py)
-    inv_re = 1.0 / re
-    re_s = re * SUPPORT
-    threshold = beta * n0
-    igamma = _integer_gamma(gamma)
-    for i in prange(n):
-        xi = pos[i, 0]
-        yi = pos[i, 1]
-        s = 0.0
-        for k in range(offsets[i], offsets[i + 1]):
-            _, _, r2 = _sep(pos, nbr[k], xi, yi, px, py, hx, hy)
-            r = np.sqrt(r2)
-            w = _w_in(wcode, min(r, re), re, inv_re)
-            s += w if _inside(r, r2, re_s) else 0.0
-        _state_of(i, s + static_n[i], kind, n0, tait, prefactor, gamma, igamma, clip, threshold,
-                  n_out, p_out, surface, inner)
-    return n_out
 
 
 @kernel
@@ -162,7 +192,7 @@ def corrector(pos, vel, du, dt, stab, use_stab):
             vel[i, 1] += stab[i, 1]
 
 
-@njit(cache=True)
+@compiled
 def max_over(values, kind, only_fluid):
     """max of ``values`` over fluid particles (or all); 0.0 when there is none."""
     m = -np.inf
@@ -176,7 +206,7 @@ def max_over(values, kind, only_fluid):
     return m if found else 0.0
 
 
-@njit(cache=True)
+@compiled
 def max_speed(vel):
     """max_i |u_i| (sqrt of the largest u^2 + v^2: the same bits as the max of the norms)."""
     m = 0.0
@@ -187,53 +217,91 @@ def max_speed(vel):
     return np.sqrt(m)
 
 
+@compiled
+def health(pos, vel, pressure, kind, lo, hi, free_axis, margin, field):
+    """(all finite, max fluid speed, fluid particles outside the box by more than ``margin``,
+    max |field|) in one pass: what the runner checks after every step.  ``free_axis``: which
+    axes the box bounds (periodic axes do not); ``field``: the diffusion scalar or an empty
+    array.  Non-finite values make the speed or the field maximum NaN."""
+    finite = True
+    m2 = 0.0
+    out = 0
+    for i in range(pos.shape[0]):
+        x = pos[i, 0]
+        y = pos[i, 1]
+        u = vel[i, 0]
+        v = vel[i, 1]
+        if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(u) and np.isfinite(v)
+                and np.isfinite(pressure[i])):
+            finite = False
+        if kind[i] == FLUID:
+            s = u * u + v * v
+            if s > m2 or s != s:
+                m2 = s
+            if (free_axis[0] and (x < lo[0] - margin or x > hi[0] + margin)) or (
+                    free_axis[1] and (y < lo[1] - margin or y > hi[1] + margin)):
+                out += 1
+    fmax = 0.0
+    for i in range(field.shape[0]):
+        a = abs(field[i])
+        if a > fmax or a != a:
+            fmax = a
+    return finite, np.sqrt(m2), out, fmax
+
+
 # --------------------------------------------------------------------------- diffusion
 
 
-@kernel
-def operator_entries(
-    offsets, nbr, pos, period, model, wcode, re, pref, n0, gcorr, coef, rowsum
-):
+@factory
+def operator_entries(wt: fm.Weight, lap: fm.Laplacian) -> Any:
     """Per-entry coefficients a_ij of the Laplacian: lap(phi)_i = sum_j a_ij (phi_j - phi_i).
 
-    a_ij = c_ij, or with the xu-jin gradient correction c_ij - (D/n0) (W_ij / r_ij^2)
-    (B_i . r_ij), B_i = sum_j c_ij r_ij (the reference's L - diag(B) G in one coefficient).
-    ``rowsum`` receives the Gershgorin row sum of |L| (off-diagonal |a_ij| plus the diagonal
+    Arguments ``(offsets, nbr, pos, period, re, pref, s, gfactor, gcorr, coef, rowsum)``
+    (``pref``, ``s``, ``gfactor`` as in :func:`.kernels.laplacian_field`).  a_ij = c_ij, or
+    with the xu-jin gradient correction c_ij - gfactor (W_ij / r_ij^2) (B_i . r_ij),
+    B_i = sum_j c_ij r_ij (the reference's L - diag(B) G in one coefficient).  ``rowsum``
+    receives the Gershgorin row sum of |L| (off-diagonal |a_ij| plus the diagonal
     |sum_j a_ij|), as the reference takes it from its sparse matrix.
     """
-    n = offsets.shape[0] - 1
-    f = DIM / n0
-    px = period[0]
-    py = period[1]
-    hx = half_width(px)
-    hy = half_width(py)
-    inv_re = 1.0 / re
-    re_s = re * SUPPORT
-    for i in prange(n):
-        xi = pos[i, 0]
-        yi = pos[i, 1]
-        bx = 0.0
-        by = 0.0
-        for k in range(offsets[i], offsets[i + 1]):
-            dx, dy, r2 = _sep(pos, nbr[k], xi, yi, px, py, hx, hy)
-            r = np.sqrt(r2)
-            c = _coef_in(model, wcode, r, min(r, re), r2, re, inv_re, pref)
-            c = c if _inside(r, r2, re_s) else 0.0
-            coef[k] = c
-            bx += c * dx
-            by += c * dy
-        if gcorr:
+    coef_of = fm.laplacian_pair(wt, lap)
+    w_of = fm.number_density_pair(wt)
+
+    def operator_entries(offsets, nbr, pos, period, re, pref, s, gfactor, gcorr, coef, rowsum):
+        n = offsets.shape[0] - 1
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        re_s = re * SUPPORT
+        for i in prange(n):
+            xi = pos[i, 0]
+            yi = pos[i, 1]
+            bx = 0.0
+            by = 0.0
             for k in range(offsets[i], offsets[i + 1]):
-                dx, dy, r2 = _sep(pos, nbr[k], xi, yi, px, py, hx, hy)
+                j = nbr[k]
+                dx, dy, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
                 r = np.sqrt(r2)
-                q = _w_over_r2(wcode, r, r2, re, inv_re, re_s)
-                coef[k] -= bx * (f * q * dx) + by * (f * q * dy)
-        sa = 0.0
-        sd = 0.0
-        for k in range(offsets[i], offsets[i + 1]):
-            sa += abs(coef[k])
-            sd += coef[k]
-        rowsum[i] = sa + abs(sd)
+                c = pref * coef_of(r, re, s, i, j)
+                c = c if inside(r, r2, re_s) else 0.0
+                coef[k] = c
+                bx += c * dx
+                by += c * dy
+            if gcorr:
+                for k in range(offsets[i], offsets[i + 1]):
+                    dx, dy, r2 = sep(pos, nbr[k], xi, yi, px, py, hx, hy)
+                    r = np.sqrt(r2)
+                    q = RADIAL(r, w_of(r, re))
+                    q = q if inside(r, r2, re_s) else 0.0
+                    coef[k] -= bx * (gfactor * q * dx) + by * (gfactor * q * dy)
+            sa = 0.0
+            sd = 0.0
+            for k in range(offsets[i], offsets[i + 1]):
+                sa += abs(coef[k])
+                sd += coef[k]
+            rowsum[i] = sa + abs(sd)
+
+    return operator_entries
 
 
 @kernel
@@ -255,7 +323,7 @@ def axpy(phi, factor, work):
         phi[i] += factor * work[i]
 
 
-@njit(cache=True)
+@compiled
 def symmetric_step(offsets, nbr, coef, phi, factor, work):
     """phi += factor * L phi for a symmetric L held once per pair (serial).
 
@@ -278,4 +346,3 @@ def symmetric_step(offsets, nbr, coef, phi, factor, work):
         work[i] += s
     for i in range(n):
         phi[i] += factor * work[i]
-

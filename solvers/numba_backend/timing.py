@@ -18,11 +18,13 @@ import numba
 import numpy as np
 
 from mpsbench.physics import operators as ops
+from mpsbench.physics.gradients import get_gradient
+from mpsbench.physics.laplacians import get_laplacian
 from mpsbench.physics.neighbours import build_pairs
 from mpsbench.physics.particles import Box
 from mpsbench.physics.weights import get_weight
 
-from . import cells, kernels
+from . import cells, formulas, geometry, kernels
 
 
 def _time(fn: Callable[[], object], repeat: int) -> tuple[float, float]:
@@ -55,16 +57,23 @@ def main(argv: list[str] | None = None) -> None:
     pos += rng.uniform(-0.05, 0.05, pos.shape)
     box = Box((0.0, 0.0), (float(side), float(side)), (True, True))
     n = len(pos)
-    period = cells.box_period(box)
+    period = geometry.box_period(box)
     wf = get_weight("wf2")
     n0, lam = ops.lattice_constants(wf, re, 1.0)
-    lap = ops.get_laplacian("xu-jin")
-    code = kernels.LAPLACIAN_CODES["xu-jin"]
-    pref = kernels.laplacian_prefactor(code, n0, lam)
+    lap = get_laplacian("xu-jin")
+    pgm1 = get_gradient("pgm1")
+    fm = formulas.compile_models(wf, lap, pgm1)
+    pref = lap.prefactor(n0, lam)
+    k_density = kernels.number_density(fm.weight)
+    k_laplacian = kernels.laplacian_field(fm.weight, fm.laplacian)
+    k_pmin = kernels.neighbour_min(fm.weight)
+    k_pgm1 = kernels.pressure_gradient(fm.weight, fm.gradient)
+    all_rows = np.zeros(0, dtype=np.bool_)
     u = rng.normal(size=(n, 2))
     p = np.abs(rng.normal(size=n))
     mask = np.ones(n, bool)
     nd, lv, g, rows = np.empty(n), np.empty((n, 2)), np.empty((n, 2)), np.empty(n)
+    pmin = np.empty(n)
     cutoff = re + ns.skin
     state = {"csr": cells.build_csr(pos, cutoff, box)}
 
@@ -73,17 +82,17 @@ def main(argv: list[str] | None = None) -> None:
 
     def density() -> None:
         c = state["csr"]
-        kernels.number_density(c.offsets, c.nbr, pos, period, 2, re, nd)
+        k_density(c.offsets, c.nbr, pos, period, re, nd)
 
     def laplacian() -> None:
         c = state["csr"]
-        kernels.laplacian_vec(
-            c.offsets, c.nbr, pos, period, u, code, 2, re, pref, n0, False, lv, rows
-        )
+        k_laplacian(c.offsets, c.nbr, pos, period, u, re, pref, kernels.NO_MOMENT, ops.DIM / n0,
+                    False, lv, rows, all_rows)
 
     def pressure() -> None:
         c = state["csr"]
-        kernels.pgm1(c.offsets, c.nbr, pos, period, p, mask, 2, re, n0, g)
+        k_pmin(c.offsets, c.nbr, pos, period, p, mask, re, pmin)
+        k_pgm1(c.offsets, c.nbr, pos, period, p, pmin, mask, re, pgm1.prefactor(n0), g, all_rows)
 
     def numba_pass() -> None:
         build()
@@ -96,7 +105,7 @@ def main(argv: list[str] | None = None) -> None:
         w = wf.w(pl.r, re)
         ops.number_density(pl, w)
         lap.apply(pl, u, wf, re, n0, lam)
-        ops.pgm1(pl, p, w, n0)
+        pgm1(pl, p, w, n0)
 
     entries = len(state["csr"].nbr) / n
     print(

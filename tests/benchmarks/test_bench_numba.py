@@ -3,7 +3,7 @@
 Run with ``pytest tests/benchmarks --benchmark-only`` (the default test run skips benchmarks);
 the README gives the command that stores the results with machine and commit info.  The
 workload, the sizes and the steps per round are those of ``mpsbench bench``
-(:mod:`mpsbench.run.bench`: ``workload``, ``SIZES``, ``DEFAULT_STEPS``): the dam break with l0
+(:mod:`mpsbench.testing.bench`: ``workload``, ``SIZES``, ``DEFAULT_STEPS``): the dam break with l0
 chosen for about 10k, 40k and 160k particles and the sheared start, so the neighbour list is
 rebuilt every several steps.  A step round is ``STEPS`` consecutive ``step(stable_dt())``
 calls, so the rebuilds are amortised at their natural rate; a rebuild round is one forced
@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mpsbench.run.bench import DEFAULT_STEPS, SIZES, new_solver, spacing_for, workload
+from mpsbench.testing.bench import DEFAULT_STEPS, SIZES, new_solver, spacing_for, workload
 
 STEPS = DEFAULT_STEPS
 SOLVERS = ("reference", "numba")

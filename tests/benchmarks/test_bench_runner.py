@@ -15,8 +15,8 @@ from typing import Any
 
 import pytest
 
-from mpsbench.run.protocol import make_solver
 from mpsbench.run.runner import run
+from mpsbench.run.specs import make_solver
 
 pytest.importorskip("numba")
 

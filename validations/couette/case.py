@@ -55,6 +55,13 @@ from mpsbench.cases.refinement import SPACE, TIME, Refinement
 from mpsbench.errors import ConfigError
 from mpsbench.physics.config import FlowPhysics, Models, TimeStepping, WallMotion
 from mpsbench.physics.particles import Box, Kind, Particles, block, jitter, wall_layers
+from mpsbench.run.estimate import (
+    RunEstimate,
+    flow_dt,
+    lattice_laplacian_bound,
+    pairs_for,
+    steps_for,
+)
 from mpsbench.run.probes import LayerAverage
 from mpsbench.run.protocol import Problem
 from mpsbench.run.runner import RunResult, run
@@ -235,6 +242,25 @@ class CouetteCase(Case):
         problem = Problem(p, box, l0, physics, models, TimeStepping(c_nu=params["c_nu"]),
                           wall_motions=(WallMotion(MOVING_TAG, (U, 0.0)),), name="couette")
         return problem, rows
+
+    def estimate(self, params: dict[str, Any]) -> RunEstimate:
+        """The particles of :meth:`build`; steps at the viscous limit on the lattice."""
+        n = round(L / float(params["l0"]))
+        l0, re = L / n, float(params["re_ratio"])
+        nx = math.ceil(2.0 * (re + 0.5)) + 1
+        walls = 2 * nx * (1 + max(3, math.ceil(re) - 1))
+        particles = nx * (n - 1 if params["wall_row"] == "on-plate" else n) + walls
+        rho = lattice_laplacian_bound(params["weight"], params["laplacian"], re) / l0**2
+
+        def steps(c_nu: float, duration: float) -> int:
+            return steps_for(duration, flow_dt(l0, C0, U, 0.2, NU, c_nu, rho))
+
+        total, runs = steps(params["c_nu"], END_TIME), 1
+        if params["dt_check"]:
+            total, runs = total + steps(0.5 * params["c_nu"], END_TIME), runs + 1
+        if params["steady"]:
+            total, runs = total + steps(max(params["c_nu"], 0.5), STEADY_RUN_TIME), runs + 1
+        return RunEstimate(particles, pairs_for(particles, re), total, solver_runs=runs)
 
     def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
         result, rows, u = self._transient(params, solver)

@@ -51,9 +51,11 @@ import numpy as np
 from mpsbench.cases import Case, CaseCheck, CaseRun, Grid, Param, RefinementGrid
 from mpsbench.cases.refinement import SPACE, TIME, Refinement
 from mpsbench.physics.config import FlowPhysics, Models, TimeStepping
-from mpsbench.physics.operators import GRADIENTS, LAPLACIANS
+from mpsbench.physics.gradients import GRADIENTS
+from mpsbench.physics.laplacians import LAPLACIANS
 from mpsbench.physics.particles import Box, Kind, Particles, block, tank
 from mpsbench.physics.weights import WEIGHTS
+from mpsbench.run.estimate import RunEstimate, flow_dt, pairs_for, steps_for
 from mpsbench.run.probes import PointPressure, Probe, Snapshot
 from mpsbench.run.protocol import Problem
 from mpsbench.run.runner import run
@@ -277,6 +279,27 @@ def build(params: dict[str, Any]) -> tuple[Problem, dict[str, float]]:
     return problem, scales
 
 
+def estimate(params: dict[str, Any]) -> RunEstimate:
+    """The particles of :func:`build` (column and tank, 4 boundary layers) and the steps at
+    the acoustic limit with |u| = sqrt(2 g H); the Lobovsky sensors, sampled every few steps,
+    shorten about a fifth of the steps (see :func:`execute_lobovsky`)."""
+    geo = GEOMETRIES[params["geometry"]]
+    l0 = float(params["l0"])
+    nx = max(2, int(round(geo.column_width / l0)))
+    ny = max(2, int(round(nx * geo.column_height / geo.column_width)))
+    a, h = nx * l0, ny * l0
+    floor = (geo.tank_length + 8 * l0) / l0 + 1
+    particles = int(nx * ny + 4 * floor + 8 * (geo.wall_height / l0 + 1))
+    c0 = params["c0_factor"] * math.sqrt(2 * G * geo.column_height)
+    dt = flow_dt(l0, c0, math.sqrt(2 * G * h), params["cfl"])
+    if params["geometry"] == KO:
+        steps = steps_for(params["end_T"] / math.sqrt(2 * G / a), dt)
+    else:
+        steps = int(1.2 * steps_for(params["end_tstar"] * math.sqrt(h / G), dt))
+    re = max(params["re_ratio"], params["re_ratio_laplacian"])
+    return RunEstimate(particles, pairs_for(particles, re), steps)
+
+
 def _snapshot_arrays(snap: Snapshot, labels: tuple[float, ...]) -> dict[str, np.ndarray]:
     out: dict[str, np.ndarray] = {"snap_labels": np.asarray(labels[: len(snap.values)], float)}
     for k, s in enumerate(snap.values):
@@ -424,6 +447,9 @@ class DamBreakCase(Case):
                 seen.add(key)
                 out.append(p)
         return out
+
+    def estimate(self, params: dict[str, Any]) -> RunEstimate:
+        return estimate(params)
 
     def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
         if params["geometry"] == KO:

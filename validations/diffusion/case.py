@@ -35,6 +35,7 @@ from mpsbench.cases.refinement import SPACE, TIME, Refinement
 from mpsbench.errors import ConfigError
 from mpsbench.physics.config import DiffusionPhysics, Models, TimeStepping
 from mpsbench.physics.particles import Box, jitter, lattice_in_box
+from mpsbench.run.estimate import RunEstimate, diffusion_dt_limit, pairs_for, steps_for
 from mpsbench.run.protocol import Problem
 from mpsbench.run.runner import run
 
@@ -154,6 +155,22 @@ class DiffusionCase(Case):
         )
         return Problem(p, box, 1.0 / n, DiffusionPhysics(kappa=KAPPA, field_name=FIELD), models,
                        TimeStepping(dt=params["dt"]), name="diffusion")
+
+    def estimate(self, params: dict[str, Any]) -> RunEstimate:
+        """N^2 particles; the fixed dt against the forward-Euler limit of the lattice (for a
+        jittered cloud, the limit of the lattice it was jittered from)."""
+        n = round(1.0 / float(params["l0"]))
+        particles = n * n
+        lap, wf, re = params["laplacian"], params["weight"], float(params["re_ratio"])
+        dt = float(params["dt"])
+        steps, runs = steps_for(END_TIME, dt), 1
+        if params["dt_check"]:
+            steps, runs = steps + steps_for(END_TIME, 0.5 * dt), 2
+        rule = (f"forward Euler, 2 / (kappa rho), rho the spectral radius of {lap} / {wf} at "
+                f"r_e/l0 = {re:g} on the lattice of l0 = 1/{n}")
+        return RunEstimate(particles, pairs_for(particles, re), steps, dt=dt,
+                           dt_limit=diffusion_dt_limit(KAPPA, n, wf, lap, re),
+                           dt_rule=rule, solver_runs=runs)
 
     def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
         problem = self.build(params)

@@ -24,7 +24,8 @@ from mpsbench.cases.checks import below, decide
 from mpsbench.cases.refinement import NumericalUncertainty
 
 from ..paper import C4, C5
-from .metrics import TABLE_CP, TABLE_XB, free_streamline_cp
+from .metrics import TABLE_CP, TABLE_XB, free_streamline_cp, stabilization_viscosity
+from .params import PARAMS
 
 NOISE_MEASURES = {
     "noise_spatial": "spatial pressure noise",
@@ -106,8 +107,6 @@ def stabilization_re(r: dict[str, Any]) -> float:
         return float(v)
     if not r.get("stabilization") or not r.get("n_steps") or not r.get("alpha_s"):
         return math.nan
-    from .metrics import stabilization_viscosity
-
     dt = r["t_end"] * r["b"] / r["U"] / r["n_steps"]
     nu_s = stabilization_viscosity(r["weight"], r["re_ratio"], r["l0"], r["alpha_s"], dt)
     return float(r["U"] * r["b"] / nu_s)
@@ -127,9 +126,7 @@ def _model_key(r: dict[str, Any], params: list[str]) -> tuple[Any, ...]:
 
 
 def _params(records: list[dict[str, Any]]) -> list[str]:
-    from .case import CASE
-
-    return [p.name for p in CASE.params if any(p.name in r for r in records)]
+    return [p.name for p in PARAMS if any(p.name in r for r in records)]
 
 
 def pairs(records: list[dict[str, Any]]) -> list[tuple[dict[str, Any], dict[str, Any]]]:
@@ -335,9 +332,7 @@ def headline_table(records: list[dict[str, Any]], unc: NumericalUncertainty) -> 
 
 def dt_table(records: list[dict[str, Any]]) -> pd.DataFrame:
     """Runs that differ only in cfl: the plate Cp and the noise against the time step."""
-    from .case import CASE
-
-    params = [p.name for p in CASE.params if p.name != "cfl"]
+    params = [p.name for p in PARAMS if p.name != "cfl"]
     groups: dict[tuple[Any, ...], list[dict[str, Any]]] = {}
     for r in completed(records):
         groups.setdefault(tuple(repr(r.get(k)) for k in params), []).append(r)

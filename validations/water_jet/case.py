@@ -34,12 +34,12 @@ from typing import Any
 
 import numpy as np
 
-from mpsbench.cases import Case, CaseCheck, CaseRun, Param, RefinementGrid
-from mpsbench.cases import analysis as an
+from mpsbench.cases import Case, CaseCheck, CaseRun, RefinementGrid
 from mpsbench.cases.refinement import SPACE, TIME, Refinement
 from mpsbench.physics.config import FlowPhysics, Models
 from mpsbench.physics.operators import lattice_constants
 from mpsbench.physics.particles import Kind
+from mpsbench.run.estimate import RunEstimate, flow_dt, pairs_for, steps_for
 from mpsbench.run.probes import Callback, PointPressure
 from mpsbench.run.runner import run
 
@@ -59,6 +59,7 @@ from .metrics import (
     tait_cp,
     temporal_noise,
 )
+from .params import L0_COARSE, L0_FINE, L0_FINEST, PARAMS
 
 RHO0 = 1000.0  # kg/m^3, water
 NU = 1.0e-6  # m^2/s, water
@@ -87,7 +88,6 @@ COMPARE: dict[str, tuple[str, float]] = {
     "b_over_l0": ("equal", 0.0),
 }
 
-B, L0_COARSE, L0_FINE, L0_FINEST = 0.1, 0.01, 0.005, 0.0025  # default b; l0 = b/10, 20, 40
 
 
 class WaterJetCase(Case):
@@ -95,32 +95,7 @@ class WaterJetCase(Case):
     title = "Water jet impinging on a flat plate: plate pressure and pressure noise"
     order = 30
     description = __doc__ or ""
-    params = (
-        Param("b", B, "jet width", "m", minimum=0.0, exclusive_minimum=True),
-        Param("U", 1.0, "jet speed", "m/s", minimum=0.0, exclusive_minimum=True),
-        Param("nozzle_gap", 2.0, "nozzle (inlet line) height above the plate", "b", minimum=1.0),
-        Param("plate_length", 6.0, "plate length (centred on the jet)", "b", minimum=6.0),
-        Param("l0", L0_FINE, "particle spacing (b/l0 must be a whole number)", "m",
-              minimum=0.0, exclusive_minimum=True),
-        Param("gradient", "pgm1", "pressure-gradient model", kind=str,
-              choices=an.gradient_names()),
-        Param("stabilization", True, "stabilization (docs/method.md 5) on/off", kind=bool),
-        Param("alpha_s", 0.01, "stabilization coefficient", "", minimum=0.0, maximum=1.0),
-        Param("stabilization_walls", True,
-              "wall and dummy particles are neighbours in the stabilization sum", kind=bool),
-        Param("collision_distance", 0.0, "collision distance alpha_c (0 = no collision model)",
-              "l0", minimum=0.0, maximum=0.99),
-        Param("weight", "wf2", "weighting function", kind=str, choices=an.weight_names()),
-        Param("laplacian", "xu-jin", "Laplacian model (viscous term)", kind=str,
-              choices=an.laplacian_names()),
-        Param("re_ratio", 2.1, "r_e / l0", "", minimum=1.0, maximum=10.0),
-        Param("c0_ratio", 10.0, "sound speed c0 / U", "", minimum=1.0),
-        Param("cfl", 0.2, "Courant number of dt = cfl l0 / (c0 + |u|max)", "",
-              minimum=0.0, exclusive_minimum=True, maximum=1.0),
-        Param("t_end", 7.0, "end time", "b/U", minimum=0.0, exclusive_minimum=True),
-        Param("t_window", 3.0, "averaging window before t_end", "b/U",
-              minimum=0.0, exclusive_minimum=True),
-    )
+    params = PARAMS
     metrics = {
         "cp_rms_error": "RMS of Cp - Cp_exact over the plate sensors at 0 <= x/b <= 2 (-)",
         "cp_max_error": "max |Cp - Cp_exact| over 0 <= x/b <= 2 (-)",
@@ -198,6 +173,18 @@ class WaterJetCase(Case):
     }
 
     # ------------------------------------------------------------------ one run
+    def estimate(self, params: dict[str, Any]) -> RunEstimate:
+        """Plate rows, inflow rows, the initial jet column and, at steady state, a film of
+        half the jet width along the whole plate; steps at the acoustic limit with |u| = U."""
+        b, speed, l0 = params["b"], params["U"], params["l0"]
+        plate = params["plate_length"] * b
+        fluid = (params["nozzle_gap"] * b * b + 0.5 * b * plate) / l0**2
+        walls = (plate / l0 + 1) * 4 + 4 * b / l0
+        particles = int(fluid + walls)
+        dt = flow_dt(l0, params["c0_ratio"] * speed, speed, params["cfl"])
+        steps = steps_for(params["t_end"] * b / speed, dt)
+        return RunEstimate(particles, pairs_for(particles, params["re_ratio"]), steps)
+
     def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
         b, speed, l0 = params["b"], params["U"], params["l0"]
         if params["t_window"] >= params["t_end"]:

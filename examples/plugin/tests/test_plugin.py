@@ -17,8 +17,9 @@ from __future__ import annotations
 import pytest
 from mpsbench_example.solver import ExampleSolver
 
+from mpsbench.physics.laplacians import KoshizukaOka, get_laplacian
 from mpsbench.physics.neighbours import build_pairs
-from mpsbench.physics.operators import KoshizukaOka, get_laplacian, lattice_constants, lattice_pairs
+from mpsbench.physics.operators import lattice_constants, lattice_pairs
 from mpsbench.physics.weights import get_weight
 from mpsbench.run.protocol import SOLVERS
 from mpsbench.testing import parametrize_solver_checks
@@ -58,3 +59,22 @@ def test_other_laplacians_are_refused(tmp_path):
     assert "'xu-jin' not supported" in result.records[0]["reason"]
     with pytest.raises(AssertionError, match="not supported"):
         result.assert_ok()
+
+
+def test_ko_local_runs_on_the_numba_backend_too(tmp_path):
+    """The formulas are the plugin's own: the numba backend compiles them into its kernels, so
+    the smoke diffusion runs give the reference's numbers (numba needs mpsbench[fast])."""
+    pytest.importorskip("numba")
+    ref = run_case("diffusion", "reference", tier="smoke", laplacian="ko-local",
+                   out=tmp_path / "ref")
+    fast = run_case("diffusion", "numba", tier="smoke", laplacian="ko-local",
+                    out=tmp_path / "numba")
+    ref.assert_ok()
+    fast.assert_ok()
+    def by_run(records):
+        return {(r["l0"], r["dt_check"]): r["l2_error"] for r in records}
+
+    want, got = by_run(ref.records), by_run(fast.records)
+    assert len(want) == len(ref.records) and got.keys() == want.keys()
+    for key, value in want.items():
+        assert got[key] == pytest.approx(value, rel=1e-8)

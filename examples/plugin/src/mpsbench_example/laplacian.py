@@ -9,13 +9,16 @@ ends, so the coefficients stay symmetric (the viscous term keeps conserving mome
 
 On a full, regular neighbourhood S_i = lambda n0 and the model is the original one; on a
 disordered or truncated neighbourhood the normalisation follows the particles that are there.
+
+The model is three formulas in plain arithmetic: mpsbench evaluates them on numpy arrays for the
+reference backend and compiles them into the numba backend's kernels, so ko-local runs on both.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from mpsbench.physics.operators import LaplacianModel
+from mpsbench.physics.laplacians import LaplacianModel
 
 
 class LocalKoshizukaOka(LaplacianModel):
@@ -25,16 +28,17 @@ class LocalKoshizukaOka(LaplacianModel):
     description = "LM1 with a local normalisation: 2D W_ij / mean(S_i, S_j), S_i = sum W r^2"
     source = "mpsbench example plugin (after Koshizuka & Oka 1996)"
 
-    def coefficients(self, pairs, weight, re, n0, lam, dim=2):
-        """Per-pair coefficients c_ij, aligned with ``pairs`` (symmetric in i and j).
+    @staticmethod
+    def moment(r, w, dw, d2w):
+        """The per-particle sum S_i = sum_j W_ij r_ij^2 [m^2] (summed over i's pairs)."""
+        return w * (r * r)
 
-        ``pairs`` has ``i``, ``j``, ``r`` (distances [m]) and ``sum_sym`` (per-particle sums);
-        ``weight.w(r, re)`` is the weighting function, zero beyond ``re`` [m].  ``n0`` and
-        ``lam`` (the lattice constants) are not needed by this model.
-        """
-        w = weight.w(pairs.r, re)
-        moment = pairs.sum_sym(w * pairs.r**2)  # S_i [m^2]
-        s = 0.5 * (moment[pairs.i] + moment[pairs.j])
-        out = np.zeros_like(w)
-        np.divide(2.0 * dim * w, s, out=out, where=s > 0)
-        return out
+    @staticmethod
+    def pair(r, w, dw, d2w, s_i, s_j):
+        """W_ij / mean(S_i, S_j); S > 0 wherever W > 0 (the pair itself is in the sum)."""
+        return w / np.maximum(0.5 * (s_i + s_j), 1e-300)
+
+    @staticmethod
+    def prefactor(n0, lam):
+        """2D (the lattice constants n0, lambda are not needed)."""
+        return 2.0 * 2

@@ -50,7 +50,9 @@ from typing import Any
 import numpy as np
 
 from mpsbench.physics.particles import Kind
-from mpsbench.run.protocol import Problem, Solver, get_solver_class, make_solver
+from mpsbench.run.protocol import Problem, Solver
+from mpsbench.run.specs import SolverSpec, get_solver_class, make_solver, solver_spec
+from mpsbench.testing.problems import dam_break_problem
 
 G = 9.81  # m/s^2
 COLUMN = (0.146, 0.292)  # m: the dam-break column (width, height)
@@ -138,16 +140,21 @@ class Contender:
     code_module: str = ""
 
 
-def new_solver(spec: str | type) -> Solver:
-    """A fresh solver from a registry name (or spec): the one place the bench makes one."""
+def new_solver(spec: str | type | SolverSpec) -> Solver:
+    """A fresh solver from a spec (``numba``, ``numba:threads=1``) or a class: the one place the
+    bench makes one."""
     return make_solver(spec)
 
 
 def solver_contender(spec: str | type) -> Contender:
-    """A registered backend as a contender; raises (unknown name, missing extra) at once."""
+    """A registered backend as a contender, labelled by its canonical spec; raises (unknown
+    name, missing extra, unknown option or bad value) at once."""
     cls = get_solver_class(spec)
-    label = spec if isinstance(spec, str) else str(getattr(cls, "name", cls.__name__))
-    return Contender(label, lambda: new_solver(spec), cls.__module__)
+    if isinstance(spec, str):
+        parsed = solver_spec(spec)
+        return Contender(parsed.text, lambda: new_solver(parsed), cls.__module__)
+    return Contender(str(getattr(cls, "name", cls.__name__)), lambda: new_solver(spec),
+                     cls.__module__)
 
 
 def spacing_for(n: int) -> float:
@@ -158,16 +165,12 @@ def spacing_for(n: int) -> float:
     b = WALL_LAYERS * WALL_LENGTH
     inv = (-b + math.sqrt(b * b + 4.0 * a * n)) / (2.0 * a)  # a x^2 + b x = n, x = 1 / l0
     l0 = 1.0 / inv
-    from mpsbench.testing.problems import dam_break_problem
-
     got = dam_break_problem(l0=l0).particles.n
     return l0 * math.sqrt(got / n)  # one correction step: counts go as 1 / l0^2
 
 
 def workload(n: int | None = None, l0: float | None = None) -> Problem:
     """The benchmark dam break at about ``n`` particles (or at spacing ``l0`` [m])."""
-    from mpsbench.testing.problems import dam_break_problem
-
     if l0 is None:
         if n is None:
             raise ValueError("workload: give n or l0")

@@ -8,7 +8,7 @@ The scheme is configured as PySPH's own dam-break example configures its default
 (gamma 7), artificial viscosity alpha = 0.1, beta = 0, the hourglass correction, h = 1.3 dx
 with ``update_h``, the WendlandQuintic kernel, the PEC integrator and PySPH's adaptive time
 step with its default CFL number 0.3.  What it runs on is the bench workload
-(:func:`mpsbench.run.bench.workload`): the same particles (fluid column, and the wall and
+(:func:`mpsbench.testing.bench.workload`): the same particles (fluid column, and the wall and
 dummy rows as PySPH's one ``boundary`` array, as its example's 4-layer tank), the same sheared
 start velocities, rho0, gravity and sound speed c0 = 10 sqrt(2 g H) (the example's rule
 too).  So N is the same and so is the physical run, and wall time per simulated second

@@ -1,0 +1,304 @@
+"""The WC-MPS and diffusion time steps, written once; a backend supplies its kernels and layout.
+
+:class:`SchemeSolver` is a :class:`~mpsbench.run.protocol.SolverBase` that owns everything the
+backends share (docs/solver-contract.md sections 2-10, docs/method.md sections 1-5):
+
+* set-up: the models from the registries (weight, Laplacian, pressure gradient), the radii
+  r_e and r_e,lap, a copy of the particles with the inflow reservoir rows appended, the wall
+  motions, n0, n0_lap and lambda (:func:`reference_constants`), the equation of state;
+* the step: diffusion (phi += dt kappa L phi) or WC-MPS in the order of the contract's table
+  (predictor, number density and pressure at r*, pressure gradient, collision, stabilization,
+  corrector, wrap, open boundaries), with the periodic wrap and the open boundaries
+  (:func:`mpsbench.physics.boundaries.update_open_boundaries`) done here;
+* ``stable_dt()`` (and which limit set it: ``diagnostics()["dt_limit"]``), ``state()``,
+  ``diagnostics()``, ``particle_count()``.
+
+A backend subclasses it and implements the hooks, each one piece of the step on its own data
+layout (the reference: numpy over a pair list; numba: compiled kernels over cell lists):
+
+=========================  =====================================================================
+``_setup_diffusion(ph)``   assemble the Laplacian at r_e,lap once; return (the Gershgorin bound
+                           of its spectral radius, diagonal included; n_i at r_e)
+``_diffuse(phi, factor)``  phi += factor L phi in place
+``_setup_flow(ph)``        build the neighbour data (the particles are in ``self.p``)
+``_update_neighbours()``   make the neighbour data valid for the current positions
+``_number_density()``      n_i at r_e (set-up only; the step uses ``_density_pressure``)
+``_viscous(mirror)``       lap(u) of the velocities (mirrored at walls when ``mirror``), kept
+                           for ``_predict``; return max over fluid rows of sum_j |c_ij|
+``_predict(dt, ph)``       u* = u + dt (nu lap(u) + g) on fluid; every particle moves by dt u*
+``_density_pressure(eos)`` n at r*, ``eos`` -> pressure, ``self.number_density``,
+                           ``self.free_surface`` (and the inner flags of the stabilization)
+``_pressure_increment(f)`` du = f grad(p) on fluid (f = -dt / rho0), 0 elsewhere
+``_collision(d, e)``       du += the collision increments at u + du
+``_add_increment()``       u += du
+``_stabilize(f, walls)``   the stabilization increments (prefactor f) at r*, for ``_move``
+``_move(dt, stabilized)``  r += dt du; with the stabilization u += its increments
+``_particles_changed(k)``  the particle set changed (``keep`` of the open boundaries)
+``rebuild_neighbours()``   rebuild the neighbour data now (timed by ``mpsbench bench``)
+=========================  =====================================================================
+
+``_max_speed()`` (max |u| over all particles) and ``health()`` (the runner's per-step check) have
+numpy defaults over ``self.p`` that a backend may replace with compiled or on-device ones.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mpsbench.physics.boundaries import InflowBoundary, carry, update_open_boundaries
+from mpsbench.physics.config import DiffusionPhysics, FlowPhysics
+from mpsbench.physics.gradients import GradientModel, get_gradient
+from mpsbench.physics.laplacians import LaplacianModel, get_laplacian
+from mpsbench.physics.neighbours import build_pairs
+from mpsbench.physics.operators import STABILIZATION, lattice_constants, number_density
+from mpsbench.physics.particles import Box, Kind, Particles
+from mpsbench.physics.weights import WeightFunction, get_weight
+from mpsbench.run.protocol import Health, Problem, SolverBase, health_of
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class EquationOfState:
+    """p(n) and the free-surface rule of a WC-MPS run (docs/method.md section 4).
+
+    Tait: p = prefactor ((n/n0)^gamma - 1) with prefactor rho0 c0^2 / gamma; linear: p =
+    prefactor (n/n0 - 1) with prefactor rho0 c0^2; negative p clipped to 0 with ``clip``; fluid,
+    wall and inflow particles with n < beta n0 are on the free surface (p = 0), dummy particles
+    always have p = 0.
+    """
+
+    tait: bool
+    prefactor: float
+    gamma: float
+    clip: bool
+    beta: float
+    n0: float
+
+    @classmethod
+    def of(cls, ph: FlowPhysics, n0: float) -> EquationOfState:
+        tait = ph.eos == "tait"
+        pref = ph.rho0 * ph.c0**2 / ph.gamma if tait else ph.rho0 * ph.c0**2
+        return cls(tait, pref, ph.gamma, ph.clip_negative_pressure, ph.surface_beta, n0)
+
+    def pressure(self, n: FloatArray, kind: NDArray[Any]) -> tuple[FloatArray, NDArray[np.bool_]]:
+        """(pressure, free-surface flags) of number densities ``n`` (numpy)."""
+        ratio = n / self.n0
+        if self.tait:
+            pres = self.prefactor * (ratio**self.gamma - 1.0)
+        else:
+            pres = self.prefactor * (ratio - 1.0)
+        if self.clip:
+            np.maximum(pres, 0.0, out=pres)
+        carries = (kind == Kind.FLUID) | (kind == Kind.WALL) | (kind == Kind.INFLOW)
+        surface = carries & (n < self.beta * self.n0)
+        pres[surface | ~carries] = 0.0
+        return pres, surface
+
+
+def reference_constants(
+    p: Particles, weight: WeightFunction, re: float, l0: float, box: Box, n0_from: str
+) -> tuple[float, float]:
+    """n0 and lambda at radius ``re`` (docs/solver-contract.md section 3).
+
+    ``lattice``: the ideal square lattice of spacing l0.  ``initial``: at the fluid particle
+    with the largest number density of the initial arrangement (the first in index order on a
+    tie; any particle when there is no fluid), neighbours of every kind.  Computed here, once,
+    for every backend, so they all start from the same n0 to the last bit.
+    """
+    if n0_from == "lattice":
+        return lattice_constants(weight, re / l0, l0)
+    pairs = build_pairs(p.pos, re, box)
+    w = weight.w(pairs.r, re)
+    n = number_density(pairs, w)
+    cand = p.kind == Kind.FLUID
+    if not cand.any():
+        cand = np.ones(p.n, dtype=bool)
+    idx = int(np.nonzero(cand)[0][np.argmax(n[cand])])
+    mask_i = pairs.i == idx
+    mask_j = pairs.j == idx
+    r = np.concatenate([pairs.r[mask_i], pairs.r[mask_j]])
+    ww = np.concatenate([w[mask_i], w[mask_j]])
+    n0 = float(ww.sum())
+    if n0 <= 0:
+        raise ValueError(f"no particle has neighbours within r_e = {re}")
+    return n0, float((r**2 * ww).sum() / n0)
+
+
+class SchemeSolver(SolverBase):
+    """The WC-MPS / diffusion scheme; subclasses supply the kernels (module docstring)."""
+
+    skin_ratio = 0.3  # neighbour-list skin in units of l0
+
+    # ------------------------------------------------------------------ set-up
+    def _setup(self, problem: Problem) -> None:
+        m = problem.models
+        self.l0 = problem.l0
+        self.box = problem.box
+        self.weight: WeightFunction = get_weight(m.weight)
+        self.laplacian: LaplacianModel = get_laplacian(
+            m.laplacian, gradient_correction=m.gradient_correction
+        )
+        self.gradient: GradientModel = get_gradient(m.gradient)
+        self.re = m.re_ratio * self.l0
+        self.re_lap = m.re_lap_ratio * self.l0
+        self.p = problem.particles.copy()
+        self.inflow: InflowBoundary | None = None
+        if problem.inflow is not None:
+            self.inflow = InflowBoundary(problem.inflow, self.l0)
+            self.p = Particles.concat([self.p, self.inflow.initial()])
+        for motion in problem.wall_motions:
+            tagged = self.p.fields.get("wall_tag", np.full(self.p.n, -1.0)) == motion.tag
+            self.p.vel[tagged & (self.p.kind != Kind.FLUID)] = motion.velocity
+        self.n0, _ = reference_constants(self.p, self.weight, self.re, self.l0, self.box,
+                                         m.n0_from)
+        self.n0_lap, self.lam = reference_constants(self.p, self.weight, self.re_lap, self.l0,
+                                                    self.box, m.n0_from)
+        self.number_density = np.zeros(self.p.n)
+        self.free_surface = np.zeros(self.p.n, dtype=bool)
+        self.rho_lap = 0.0  # Gershgorin bound of the Laplacian's spectral radius [1/m^2]
+        self.dt_limit = ""
+        ph = problem.physics
+        if isinstance(ph, DiffusionPhysics):
+            if ph.field_name not in self.p.fields:
+                raise ValueError(
+                    f"diffusion needs the scalar field {ph.field_name!r} in "
+                    "Problem.particles.fields"
+                )
+            self.rho_lap, self.number_density = self._setup_diffusion(ph)
+            return
+        self.eos = EquationOfState.of(ph, self.n0)
+        self._setup_flow(ph)
+        self._update_neighbours()
+        self.number_density = self._number_density()
+        # the row sums for the first stable_dt()
+        self.rho_lap = 2.0 * self._viscous(mirror=False)
+
+    # ------------------------------------------------------------------ the step
+    def _advance(self, dt: float) -> None:
+        ph = self.problem.physics  # type: ignore[union-attr]
+        if isinstance(ph, DiffusionPhysics):
+            self._diffuse(self.p.fields[ph.field_name], dt * ph.kappa)
+            return
+        # 1-2: predictor (viscosity with the boundary velocities of step 1, gravity), move
+        self._update_neighbours()
+        if ph.nu > 0:  # (without viscosity the row sums are not needed either)
+            self.rho_lap = 2.0 * self._viscous(mirror=ph.wall_velocity == "mirror")
+        self._predict(dt, ph)
+        self._wrap()
+        # 3: number density at r*, equation of state, free surface
+        self._update_neighbours()
+        self._density_pressure(self.eos)
+        # 4: corrector, without dummy particles
+        self._pressure_increment(-(dt / ph.rho0))
+        # 5: collision on u* + u'
+        if ph.collision:
+            self._collision(ph.collision_distance * self.l0, ph.restitution)
+        self._add_increment()
+        # 6: stabilization at the r* geometry, velocities only
+        if ph.stabilization:
+            self._stabilize(STABILIZATION.prefactor(ph.alpha_s, self.l0, self.n0),
+                            ph.stabilization_walls)
+        self._move(dt, ph.stabilization)
+        # 7: wrap, open boundaries
+        self._wrap()
+        self._open_boundaries(dt)
+
+    def _wrap(self) -> None:
+        if self.box.any_periodic:
+            self.box.wrap(self.p.pos)
+
+    def _open_boundaries(self, dt: float) -> None:
+        assert self.problem is not None
+        if self.inflow is None and not self.problem.outflows:
+            return
+        self.p, keep = update_open_boundaries(self.p, self.inflow, self.problem.outflows, dt)
+        if keep is not None:
+            self.number_density = carry(self.number_density, keep)
+            self.free_surface = carry(self.free_surface, keep)
+            self._particles_changed(keep)
+
+    # ------------------------------------------------------------------ protocol
+    def stable_dt(self) -> float:
+        assert self.problem is not None
+        ph = self.problem.physics
+        umax = 0.0
+        if isinstance(ph, FlowPhysics) and self.p.n:
+            umax = self._max_speed()
+        dt, self.dt_limit = self.problem.time_stepping.limit(ph, self.l0, umax, self.rho_lap)
+        return dt
+
+    def state(self) -> Particles:
+        return self.p
+
+    def particle_count(self) -> int:
+        return self.p.n
+
+    def diagnostics(self) -> dict[str, Any]:
+        return {
+            "number_density": self.number_density,
+            "n0": self.n0,
+            "free_surface": self.free_surface,
+            "dt_limit": self.dt_limit,
+        }
+
+    def health(self, margin: float) -> Health:
+        """The runner's per-step check, from the particle arrays themselves (numpy)."""
+        assert self.problem is not None
+        return health_of(self.p, self.box, margin,
+                         getattr(self.problem.physics, "field_name", None))
+
+    def _max_speed(self) -> float:
+        """max_i |u_i| over every particle (moving walls and inflow included)."""
+        return float(np.sqrt((self.p.vel**2).sum(axis=1)).max())
+
+    # ------------------------------------------------------------------ the backend's hooks
+    def _setup_diffusion(self, ph: DiffusionPhysics) -> tuple[float, FloatArray]:
+        raise NotImplementedError
+
+    def _diffuse(self, phi: FloatArray, factor: float) -> None:
+        raise NotImplementedError
+
+    def _setup_flow(self, ph: FlowPhysics) -> None:
+        raise NotImplementedError
+
+    def _update_neighbours(self) -> None:
+        raise NotImplementedError
+
+    def _number_density(self) -> FloatArray:
+        raise NotImplementedError
+
+    def _viscous(self, mirror: bool) -> float:
+        raise NotImplementedError
+
+    def _predict(self, dt: float, ph: FlowPhysics) -> None:
+        raise NotImplementedError
+
+    def _density_pressure(self, eos: EquationOfState) -> None:
+        raise NotImplementedError
+
+    def _pressure_increment(self, factor: float) -> None:
+        raise NotImplementedError
+
+    def _collision(self, distance: float, restitution: float) -> None:
+        raise NotImplementedError
+
+    def _add_increment(self) -> None:
+        raise NotImplementedError
+
+    def _stabilize(self, factor: float, with_walls: bool) -> None:
+        raise NotImplementedError
+
+    def _move(self, dt: float, stabilized: bool) -> None:
+        raise NotImplementedError
+
+    def _particles_changed(self, keep: NDArray[np.bool_]) -> None:
+        raise NotImplementedError
+
+    def rebuild_neighbours(self) -> None:
+        """Rebuild the neighbour data now (``mpsbench bench`` times this)."""
+        raise NotImplementedError
