@@ -544,6 +544,7 @@ class DamBreakCase(Case):
     metrics = METRICS
     compare = COMPARE
     headline = "surge_front_with_u_num"
+    headline_figure = "surge_front_and_height"
     refinements = REFINEMENTS
 
     def expand(

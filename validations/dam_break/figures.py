@@ -102,6 +102,9 @@ def _snapshot_figure(
             ax.set_aspect("equal")
             ax.set_title(f"{label(r)}\n{sym} = {d['snap_labels'][k]:g}", fontsize=8)
             ax.tick_params(labelsize=7)
+            ax.set_xlabel("x [m]", fontsize=7)
+            if k == 0:
+                ax.set_ylabel("y [m]", fontsize=7)
     if sc is not None:
         fig.colorbar(sc, ax=axes, shrink=0.8, label="p / (rho g H)")
     fig.suptitle(f"Dam break ({geometry}): particles coloured by pressure, same scale for both")
