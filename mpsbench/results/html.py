@@ -1,9 +1,10 @@
 """``index.html``: the page a person reads for a results folder.
 
 Order: the claims table (the paper's statements: verdict, and rule and evidence folded
-out) and the gates overview (one row per case and solver) first, then one section per case: its headline figure, its findings, gates and
-claims, its other figures, and its tables folded away (``<details>``); with several solvers
-the cross-solver comparison comes first, then one section per solver.
+out) and the gates overview (one row per case and solver) first, then one section per case:
+its headline figure, its findings, gates and claims, its other figures, and its tables folded
+away (``<details>``); with several solvers the cross-solver comparison comes first, then one
+section per solver.
 
 Figures are stored once: the page links the PNG files of the case folders by relative path
 (``<case>/figures/<name>.png``) instead of embedding a second copy of each, so the page stays
