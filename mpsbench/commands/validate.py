@@ -82,7 +82,53 @@ def register(sub: Any) -> None:
                    help="also write a JUnit XML report: one test case per run and per check "
                    "(docs/ci.md)")
     add_run_safety_options(p)
+    add_vtu_options(p)
     p.set_defaults(func=cmd_validate)
+
+
+# ---- ParaView output (issue #18): --vtu, --frames; an output option, not a case parameter
+def add_vtu_options(p: Any) -> None:
+    p.add_argument("--vtu", action="store_true",
+                   help="also keep frames of every run in runs/<run_id>.npz and write a "
+                   "ParaView series per run to paraview/<run_id>.pvd (binary VTU, with time "
+                   "values; needs meshio: pip install \"mpsbench[vtu]\"); changes no run id "
+                   "or result; a run done without frames runs again")
+    p.add_argument("--frames", type=int, default=21, metavar="N",
+                   help="frames per run with --vtu, evenly spaced in time (default 21)")
+
+
+def vtu_frames(args: argparse.Namespace) -> int:
+    """Frames per run (0 without --vtu); a usage error before any run when meshio is missing
+    or N is not allowed."""
+    if not args.vtu:
+        return 0
+    if args.frames < 1:
+        raise UsageError(f"--frames = {args.frames} is not allowed: an integer >= 1")
+    from mpsbench.results.paraview import require_meshio
+
+    require_meshio()
+    return int(args.frames)
+
+
+def frames_retry(rule: Any, frames: int, folder_of: Any) -> Any:
+    """With --vtu, a run whose record exists but whose arrays hold no frames runs again."""
+    if not frames:
+        return rule
+    from mpsbench.results.frames import has_frames
+
+    def retry(record: dict[str, Any]) -> bool:
+        npz = Path(folder_of(record)) / "runs" / f"{record['run_id']}.npz"
+        return bool(rule and rule(record)) or not has_frames(npz)
+
+    return retry
+
+
+def write_paraview(folder: Path, records: list[dict[str, Any]], root: Path) -> None:
+    from mpsbench.results.paraview import export_runs
+
+    pvds, _ = export_runs(folder, [str(r["run_id"]) for r in records], root=root)
+    if pvds:
+        print(f"paraview: {len(pvds)} series in {folder / 'paraview'}", file=sys.stderr)
 
 
 # ---- resuming and the size guard (issue #19): --retry-failed, --yes
@@ -182,6 +228,9 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
     check_run_count(grid_size(case, args.tier, overrides) * len(solvers), args.yes,
                     f"{case.name} at tier {args.tier}")
     tasks = plan(case, solvers, args.tier, overrides)
+    frames = vtu_frames(args)
+    for task in tasks:
+        task.frames = frames
     out = Path(args.out) if args.out else default_out(args.case, args.tier)
     jobs = args.jobs or 1
     guard_tasks(tasks, jobs=jobs, yes=args.yes)
@@ -190,7 +239,9 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
     with folder_lock(out, lock_command(args)):
         print(f"{case.name}: {len(tasks)} runs -> {out}", file=sys.stderr)
         records = run_tasks(tasks, out, jobs=jobs, force=args.force, progress=print_progress(),
-                            retry=retry_rule(args))
+                            retry=frames_retry(retry_rule(args), frames, lambda r: out))
+        if frames:
+            write_paraview(out, records, out)
         section = safe_render_case(case, records, out)
         manifest.update(wall_s=round(time.perf_counter() - t0, 1),
                         cases=[{"name": case.name, "error": section.error}])
@@ -236,6 +287,9 @@ def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
         tasks += case_tasks
         print(f"{name}: {len(case_tasks)} runs", file=sys.stderr)
     guard_tasks(tasks, jobs=jobs, yes=args.yes)
+    frames = vtu_frames(args)
+    for task in tasks:
+        task.frames = frames
     with folder_lock(out, lock_command(args)):
         return _validate_all_locked(args, out, jobs, manifest, t0, names, cases, broken, tasks)
 
@@ -267,9 +321,15 @@ def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
                          for n in names]
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
     folder = {c.name: out / c.name for c in cases}
+    frames = tasks[0].frames if tasks else 0
     records = run_tasks(heavy_first(tasks), out, jobs=jobs, force=args.force,
                         progress=print_progress(), task_dir=lambda t: folder[t.case],
-                        retry=retry_rule(args))
+                        retry=frames_retry(retry_rule(args), frames,
+                                           lambda r: folder[str(r["case"])]))
+    if frames:
+        for case in cases:
+            write_paraview(folder[case.name],
+                           [r for r in records if r.get("case") == case.name], out)
     sections: list[CaseSection] = []
     for name in names:
         if name in broken:
