@@ -83,7 +83,20 @@ def register(sub: Any) -> None:
                    "(docs/ci.md)")
     add_run_safety_options(p)
     add_vtu_options(p)
+    quiet = p.add_mutually_exclusive_group()
+    quiet.add_argument("--quiet", action="store_true",
+                       help="no progress output per run (the verdicts are printed at the end)")
+    quiet.add_argument("--verbose", action="store_true",
+                       help="one plain line per run even on a terminal (default there: a bar "
+                       "with the share of the estimated work done and the ETA)")
     p.set_defaults(func=cmd_validate)
+
+
+def progress_for(args: argparse.Namespace, tasks: list[Task]) -> Any:
+    """The progress display (:mod:`mpsbench.results.progress`) that --quiet/--verbose ask."""
+    from mpsbench.results.progress import Progress
+
+    return Progress(tasks, "quiet" if args.quiet else "verbose" if args.verbose else "auto")
 
 
 # ---- ParaView output (issue #18): --vtu, --frames; an output option, not a case parameter
@@ -221,7 +234,7 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
     from mpsbench.results.lock import folder_lock
     from mpsbench.results.records import atomic_write_text
     from mpsbench.results.sections import safe_render_case
-    from mpsbench.results.sweep import plan, print_progress, run_tasks
+    from mpsbench.results.sweep import plan, run_tasks
 
     case = get_case(args.case)
     overrides = parse_overrides(case, args.set)
@@ -238,8 +251,12 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
     t0 = time.perf_counter()
     with folder_lock(out, lock_command(args)):
         print(f"{case.name}: {len(tasks)} runs -> {out}", file=sys.stderr)
-        records = run_tasks(tasks, out, jobs=jobs, force=args.force, progress=print_progress(),
-                            retry=frames_retry(retry_rule(args), frames, lambda r: out))
+        progress = progress_for(args, tasks)
+        try:
+            records = run_tasks(tasks, out, jobs=jobs, force=args.force, progress=progress,
+                                retry=frames_retry(retry_rule(args), frames, lambda r: out))
+        finally:
+            progress.close()
         if frames:
             write_paraview(out, records, out)
         section = safe_render_case(case, records, out)
@@ -312,7 +329,7 @@ def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
     from mpsbench.results.folder import MANIFEST, write_top_level
     from mpsbench.results.records import atomic_write_text
     from mpsbench.results.sections import safe_render_case, verdict
-    from mpsbench.results.sweep import print_progress, run_tasks
+    from mpsbench.results.sweep import run_tasks
 
     print(f"validate all: {len(tasks)} runs of {len(cases)} cases x "
           f"{len(manifest['solvers'])} solver(s), tier {args.tier}, {jobs} job(s) -> {out}",
@@ -322,10 +339,14 @@ def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
     folder = {c.name: out / c.name for c in cases}
     frames = tasks[0].frames if tasks else 0
-    records = run_tasks(heavy_first(tasks), out, jobs=jobs, force=args.force,
-                        progress=print_progress(), task_dir=lambda t: folder[t.case],
-                        retry=frames_retry(retry_rule(args), frames,
-                                           lambda r: folder[str(r["case"])]))
+    progress = progress_for(args, tasks)
+    try:
+        records = run_tasks(heavy_first(tasks), out, jobs=jobs, force=args.force,
+                            progress=progress, task_dir=lambda t: folder[t.case],
+                            retry=frames_retry(retry_rule(args), frames,
+                                               lambda r: folder[str(r["case"])]))
+    finally:
+        progress.close()
     if frames:
         for case in cases:
             write_paraview(folder[case.name],
