@@ -83,6 +83,7 @@ def register(sub: Any) -> None:
                    "(docs/ci.md)")
     add_run_safety_options(p)
     add_vtu_options(p)
+    add_executor_options(p)
     quiet = p.add_mutually_exclusive_group()
     quiet.add_argument("--quiet", action="store_true",
                        help="no progress output per run (the verdicts are printed at the end)")
@@ -90,6 +91,40 @@ def register(sub: Any) -> None:
                        help="one plain line per run even on a terminal (default there: a bar "
                        "with the share of the estimated work done and the ETA)")
     p.set_defaults(func=cmd_validate)
+
+
+# ---- where the runs execute (issue #18): --executor dask, --scheduler, --worker-wait
+def add_executor_options(p: Any) -> None:
+    p.add_argument("--executor", choices=("local", "dask"), default=None,
+                   help="where runs execute: local worker processes (default) or a dask "
+                   "cluster (pip install \"mpsbench[dask]\"); a worker that is lost is "
+                   "reported and its runs go to another")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="dask scheduler address (implies --executor dask); without it "
+                   "--executor dask starts a local cluster of --jobs workers")
+    p.add_argument("--worker-wait", type=float, default=120.0, metavar="SECONDS",
+                   help="with dask: stop with a message when the cluster has had no worker "
+                   "for this long (default 120)")
+
+
+def executor_for(args: argparse.Namespace, jobs: int) -> Any:
+    """The executor of --executor/--scheduler (None: the local one of run_tasks)."""
+    name = args.executor or ("dask" if args.scheduler else "local")
+    if args.scheduler and name != "dask":
+        raise UsageError("--scheduler goes with --executor dask")
+    if not args.worker_wait > 0:
+        raise UsageError(f"--worker-wait = {args.worker_wait:g} is not allowed: seconds > 0")
+    if name == "local":
+        return None
+    from mpsbench.results.executors import ExecutorError, make_executor
+
+    try:
+        ex = make_executor("dask", jobs=jobs, scheduler=args.scheduler,
+                           worker_wait=args.worker_wait)
+    except ExecutorError as exc:
+        raise UsageError(str(exc)) from None
+    print(f"executor: {ex.describe()}", file=sys.stderr)
+    return ex
 
 
 def progress_for(args: argparse.Namespace, tasks: list[Task]) -> Any:
@@ -251,12 +286,16 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
     t0 = time.perf_counter()
     with folder_lock(out, lock_command(args)):
         print(f"{case.name}: {len(tasks)} runs -> {out}", file=sys.stderr)
+        executor = executor_for(args, jobs)
         progress = progress_for(args, tasks)
         try:
             records = run_tasks(tasks, out, jobs=jobs, force=args.force, progress=progress,
-                                retry=frames_retry(retry_rule(args), frames, lambda r: out))
+                                retry=frames_retry(retry_rule(args), frames, lambda r: out),
+                                executor=executor)
         finally:
             progress.close()
+            if executor is not None:
+                executor.close()
         if frames:
             write_paraview(out, records, out)
         section = safe_render_case(case, records, out)
@@ -339,14 +378,18 @@ def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
     folder = {c.name: out / c.name for c in cases}
     frames = tasks[0].frames if tasks else 0
+    executor = executor_for(args, jobs)
     progress = progress_for(args, tasks)
     try:
         records = run_tasks(heavy_first(tasks), out, jobs=jobs, force=args.force,
                             progress=progress, task_dir=lambda t: folder[t.case],
                             retry=frames_retry(retry_rule(args), frames,
-                                               lambda r: folder[str(r["case"])]))
+                                               lambda r: folder[str(r["case"])]),
+                            executor=executor)
     finally:
         progress.close()
+        if executor is not None:
+            executor.close()
     if frames:
         for case in cases:
             write_paraview(folder[case.name],
