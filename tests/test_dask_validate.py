@@ -34,7 +34,7 @@ def cluster() -> Iterator[Any]:
 
 def test_a_killed_worker_is_reported_and_the_study_completes(tmp_path: Path,
                                                              cluster: Any) -> None:
-    tasks = toy_tasks(weight=["wf1", "wf2"], re_ratio=[2.1, 3.1], sleep=[1.5])
+    tasks = toy_tasks(weight=["wf1", "wf2"], re_ratio=[2.1, 3.1], sleep=[3.0])
     lines: list[str] = []
 
     def kill_a_busy_worker() -> None:
@@ -43,7 +43,7 @@ def test_a_killed_worker_is_reported_and_the_study_completes(tmp_path: Path,
             busy = [w for w, keys in cluster.processing().items() if keys]
             if busy:
                 pid = cluster.run(os.getpid, workers=[busy[0]])[busy[0]]
-                time.sleep(0.7)  # inside its run's sleep, seen by the watch
+                time.sleep(1.5)  # inside its run's sleep, seen by the watch (polls 4 per s)
                 os.kill(pid, signal.SIGKILL)
                 return
             time.sleep(0.05)

@@ -346,7 +346,7 @@ class _WorkerWatch:
             runs = [names[k] for k in self.processing.get(gone, []) if k in names]
             self.report(f"dask: worker {gone} lost; "
                         + (f"its run(s) go back to the queue: {', '.join(runs)}" if runs
-                           else "it was running none of this study's runs"))
+                           else "no run of this study was seen on it"))
         for new in sorted(workers - self.workers):
             self.report(f"dask: worker {new} joined")
         self.workers = workers
