@@ -32,8 +32,7 @@ from mpsbench.cases.checks import decide, less
 from mpsbench.cases.refinement import NumericalUncertainty
 
 from ..paper import C4
-from .case import RECOMMENDED
-from .metrics import SETTLE_FRACTION
+from .metrics import RECOMMENDED, SETTLE_FRACTION
 
 REST_MAX = SETTLE_FRACTION  # rms_speed_late / sqrt(2 g H)
 FLOOR_TOL = 0.05  # |floor_pressure_error|

@@ -39,6 +39,7 @@ from mpsbench.run.protocol import Problem
 from mpsbench.run.runner import run
 
 from . import metrics as hm
+from .metrics import RECOMMENDED
 from .reference import RHO0, G
 
 SAMPLE_EVERY = 0.01  # s
@@ -66,13 +67,12 @@ PARAMS = (
 )
 STAB_ONLY = ("alpha_s",)
 
-# The recommended configuration (the dam break's IWC-MPS: xu-jin + stabilization, WF2, PGM1,
+# The recommended configuration (metrics.RECOMMENDED, the dam break's IWC-MPS: xu-jin +
+# stabilization, WF2, PGM1,
 # r_e = 2.1 l0) is the gated one; its floor-pressure error gets u_num from l0 = 0.04, 0.03,
 # 0.02 m (ratios 1.33 and 1.5; the coarse levels cost a fifth of the 0.02 m run, a finer one
 # would cost twice it: the quick tier's budget).  At 0.04 m the column is 8 rows (H = 0.32 m):
 # every metric is relative to the simulated H.
-RECOMMENDED = {"laplacian": "xu-jin", "weight": "wf2", "gradient": "pgm1", "re_ratio": 2.1,
-               "stabilization": True}
 REFINEMENT_L0 = (0.04, 0.03)
 
 TIERS: dict[str, list[Grid]] = {

@@ -23,6 +23,10 @@ from .reference import G, pressure
 
 FloatArray = NDArray[np.float64]
 
+# The recommended configuration, the one the gates hold (here so that the case and its
+# analysis both import it without importing each other).
+RECOMMENDED = {"laplacian": "xu-jin", "weight": "wf2", "gradient": "pgm1", "re_ratio": 2.1,
+               "stabilization": True}
 SURFACE_LAYERS = 3  # layers below the surface left out of the pressure line fit
 SETTLE_FRACTION = 0.01  # settled: RMS speed below this fraction of sqrt(2 g H)
 
