@@ -68,11 +68,10 @@ PARAMS = (
 STAB_ONLY = ("alpha_s",)
 
 # The recommended configuration (metrics.RECOMMENDED, the dam break's IWC-MPS: xu-jin +
-# stabilization, WF2, PGM1,
-# r_e = 2.1 l0) is the gated one; its floor-pressure error gets u_num from l0 = 0.04, 0.03,
-# 0.02 m (ratios 1.33 and 1.5; the coarse levels cost a fifth of the 0.02 m run, a finer one
-# would cost twice it: the quick tier's budget).  At 0.04 m the column is 8 rows (H = 0.32 m):
-# every metric is relative to the simulated H.
+# stabilization, WF2, PGM1, r_e = 2.1 l0) is the gated one; its floor-pressure error gets u_num
+# from l0 = 0.04, 0.03, 0.02 m (ratios 1.33 and 1.5; the coarse levels cost a fifth of the
+# 0.02 m run, a finer one would cost twice it: the quick tier's budget).  At 0.04 m the column
+# is 8 rows (H = 0.32 m): every metric is relative to the simulated H.
 REFINEMENT_L0 = (0.04, 0.03)
 
 TIERS: dict[str, list[Grid]] = {
