@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import math
-import xml.etree.ElementTree as ET
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -21,7 +19,6 @@ from mpsbench.run.probes import (
     SurgeFront,
     WaterHeight,
     kernel_average,
-    write_vtu,
 )
 
 
@@ -203,34 +200,3 @@ def test_callback_and_schedule() -> None:
 
 
 # --------------------------------------------------------------------------- VTU
-
-
-def test_write_vtu_is_parseable_xml_with_every_array(tmp_path: Path) -> None:
-    p = couette_state()
-    p.fields["phi"] = np.arange(p.n, dtype=float)
-    p.fields['odd "name" <&>'] = np.ones(p.n)
-    path = write_vtu(tmp_path / "state.vtu", p)
-    root = ET.parse(path).getroot()
-    assert root.tag == "VTKFile" and root.get("type") == "UnstructuredGrid"
-    piece = root.find("UnstructuredGrid/Piece")
-    assert piece is not None
-    assert piece.get("NumberOfPoints") == str(p.n) and piece.get("NumberOfCells") == str(p.n)
-
-    def numbers(el: ET.Element | None) -> np.ndarray:
-        assert el is not None and el.text is not None
-        return np.array(el.text.split(), dtype=float)
-
-    pts = numbers(piece.find("Points/DataArray")).reshape(-1, 3)
-    np.testing.assert_allclose(pts[:, :2], p.pos, rtol=1e-8)
-    assert np.all(pts[:, 2] == 0.0)
-    cells = {a.get("Name"): numbers(a) for a in piece.findall("Cells/DataArray")}
-    np.testing.assert_array_equal(cells["connectivity"], np.arange(p.n))
-    np.testing.assert_array_equal(cells["offsets"], np.arange(1, p.n + 1))
-    np.testing.assert_array_equal(cells["types"], np.ones(p.n))  # VTK_VERTEX
-    data = {a.get("Name"): a for a in piece.findall("PointData/DataArray")}
-    assert set(data) == {"velocity", "pressure", "kind", "phi", 'odd "name" <&>'}
-    assert data["velocity"].get("NumberOfComponents") == "3"
-    vel = numbers(data["velocity"]).reshape(-1, 3)
-    np.testing.assert_allclose(vel[:, :2], p.vel, rtol=1e-8)
-    np.testing.assert_array_equal(numbers(data["kind"]), p.kind)
-    np.testing.assert_array_equal(numbers(data["phi"]), p.fields["phi"])

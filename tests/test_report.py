@@ -13,6 +13,7 @@ import pytest
 from mpsbench import cli
 from mpsbench.cases import CASES
 from tests.fake_cases import ToyCounter, ToyDiffusion, only_cases
+from tests.page_helpers import linked_figures
 
 Toys = tuple[ToyDiffusion, ToyCounter]
 
@@ -42,7 +43,7 @@ def test_report_rerenders_without_running(folder: Path, monkeypatch: pytest.Monk
     results = (folder / "results.json").read_text()
     for name in ("summary.md", "index.html"):
         (folder / name).unlink()
-    shutil.rmtree(folder / "figures")
+    shutil.rmtree(folder / "toy-diffusion" / "figures")
     # the case's current code is used: a new finding shows up without new runs
     monkeypatch.setattr(ToyDiffusion, "findings", lambda self, records: "A **new** finding.")
     assert cli.main(["report", str(folder)]) == 0
@@ -50,8 +51,8 @@ def test_report_rerenders_without_running(folder: Path, monkeypatch: pytest.Monk
     assert "A **new** finding." in summary and "PASS (2/2 cases pass)" in summary
     page = (folder / "index.html").read_text()
     assert "A <strong>new</strong> finding." in page
-    assert page.count('src="data:image/png;base64,') == 1
-    assert (folder / "figures" / "toy-diffusion" / "profile.png").is_file()
+    assert linked_figures(folder, page) == ["toy-diffusion/figures/profile.png"]  # redrawn
+    assert not (folder / "figures").exists()  # stored once: in the case folder, not copied
     assert json.loads((folder / "results.json").read_text()) == json.loads(results)
     assert "tier **smoke**" in summary  # from manifest.json
     assert "summary:" in capsys.readouterr().out
@@ -66,7 +67,8 @@ def test_report_from_files_when_the_case_is_gone(folder: Path,
     assert "has the smallest error" in summary  # findings.md
     assert "**PASS** l2 error below limit" in summary  # checks.json
     assert "Table **errors**" in summary  # tables/*.csv
-    assert 'src="data:image/png;base64,' in (folder / "index.html").read_text()
+    page = (folder / "index.html").read_text()
+    assert linked_figures(folder, page) == ["toy-diffusion/figures/profile.png"]
 
 
 def test_report_from_files_option(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:

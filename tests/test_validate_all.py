@@ -14,6 +14,7 @@ import pytest
 from mpsbench import cli
 from mpsbench.cases import CASES
 from tests.fake_cases import ToyCounter, ToyDiffusion, extra_solver, only_cases
+from tests.page_helpers import linked_figures
 
 
 @pytest.fixture
@@ -34,11 +35,12 @@ def test_all_pass_writes_one_report_folder(toys: object, tmp_path: Path,
     assert validate(out) == 0
     for name in ("results.csv", "results.json", "summary.md", "index.html", "manifest.json"):
         assert (out / name).is_file(), name
-    # per-case folders are kept, figures are copied to the top level
+    # per-case folders are kept; index.html links their figures (stored once, not copied)
     for case in ("toy-diffusion", "toy-counter"):
         for name in ("report.md", "results.csv", "checks.json", "findings.md"):
             assert (out / case / name).is_file(), (case, name)
-    assert (out / "figures" / "toy-diffusion" / "profile.png").is_file()
+    assert (out / "toy-diffusion" / "figures" / "profile.png").is_file()
+    assert not (out / "figures").exists()
     assert not (out / "runs").exists()
     mask = os.umask(0)
     os.umask(mask)
@@ -69,12 +71,12 @@ def test_all_pass_writes_one_report_folder(toys: object, tmp_path: Path,
     assert "[1/3" in err and "[3/3" in err and "[1/2" not in err
 
 
-def test_index_html_is_self_contained(toys: object, tmp_path: Path) -> None:
+def test_index_html_loads_nothing_from_the_network(toys: object, tmp_path: Path) -> None:
     out = tmp_path / "r"
     assert validate(out) == 0
     page = (out / "index.html").read_text()
     assert page.startswith("<!DOCTYPE html>")
-    assert page.count('src="data:image/png;base64,') == 1
+    assert linked_figures(out, page) == ["toy-diffusion/figures/profile.png"]
     assert not re.search(r"""(src|href)=["']?(https?:)?//""", page)
     assert "<link" not in page and "<script" not in page
     for anchor in ('id="toy-diffusion"', 'id="toy-diffusion--reference"',
@@ -162,12 +164,15 @@ def test_several_solvers_get_a_section_each(toys: object, tmp_path: Path) -> Non
     assert len(records) == 6
     for solver in ("reference", other):
         assert (out / "toy-diffusion" / "by-solver" / solver / "report.md").is_file()
-        assert (out / "figures" / "toy-diffusion" / solver / "profile.png").is_file()
-    assert (out / "figures" / "toy-diffusion" / "profile.png").is_file()  # all-solver figure
+        assert (out / "toy-diffusion" / "by-solver" / solver / "figures" / "profile.png"
+                ).is_file()
     page = (out / "index.html").read_text()
     assert f'id="toy-diffusion--{other}"' in page and 'id="toy-diffusion--reference"' in page
-    assert "Metrics by solver" in page and f"l2_error [{other}]" in page
-    assert page.count('src="data:image/png;base64,') == 3
+    assert "metrics by solver" in page and f"l2_error [{other}]" in page
+    # the all-solver figure first, then each solver's
+    assert linked_figures(out, page) == [
+        "toy-diffusion/figures/profile.png",
+        *[f"toy-diffusion/by-solver/{s}/figures/profile.png" for s in ("reference", other)]]
     summary = (out / "summary.md").read_text()
     assert f"### solver {other} 0.0.1: PASS" in summary
 
@@ -198,7 +203,7 @@ def test_single_case_folder_gets_summary_and_index(toys: object, tmp_path: Path)
     assert cli.main(["validate", "toy-diffusion", "--tier", "smoke", "--out", str(out)]) == 0
     for name in ("report.md", "results.json", "summary.md", "index.html", "figures/profile.png"):
         assert (out / name).is_file(), name
-    assert 'src="data:image/png;base64,' in (out / "index.html").read_text()
+    assert linked_figures(out, (out / "index.html").read_text()) == ["figures/profile.png"]
 
 
 def test_cases_with_fewer_longer_runs_are_submitted_first() -> None:

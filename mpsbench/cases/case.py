@@ -77,6 +77,11 @@ class Case:
     compare: dict[str, tuple[str, float]] = {}
     # The table shown in summary.md and first in index.html (default: the first of ``tables``).
     headline: str = ""
+    # The figure shown first in index.html, a file stem (default: the first of ``figures``).
+    headline_figure: str = ""
+    # Parameters the case no longer has that older records still carry: neither parameters nor
+    # metrics, so ``mpsbench compare`` holds nothing against them (identity ignores them anyway).
+    retired_params: tuple[str, ...] = ()
     # Where the case comes in reports and in ``validate all`` (lower first; equal: by name).
     # The built-ins use 10, 20, ...; a plugin case without one comes after them.
     order: float = 1000.0

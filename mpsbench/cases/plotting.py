@@ -156,6 +156,7 @@ def refinement_figure(sets: Sequence[Any], title: str, path: Path) -> Path | Non
                             color="tab:blue", alpha=0.2, label="finest ± u_num")
         ax.set_xlim(left=0.0)
         ax.set_xlabel(f"{s.refinement.over} ({s.kind})")
+        ax.set_ylabel(s.metric)
         ax.set_title(f"{s.metric}: {c.kind}", fontsize=9)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6)

@@ -82,7 +82,101 @@ def register(sub: Any) -> None:
                    help="also write a JUnit XML report: one test case per run and per check "
                    "(docs/ci.md)")
     add_run_safety_options(p)
+    add_vtu_options(p)
+    add_executor_options(p)
+    quiet = p.add_mutually_exclusive_group()
+    quiet.add_argument("--quiet", action="store_true",
+                       help="no progress output per run (the verdicts are printed at the end)")
+    quiet.add_argument("--verbose", action="store_true",
+                       help="one plain line per run even on a terminal (default there: a bar "
+                       "with the share of the estimated work done and the ETA)")
     p.set_defaults(func=cmd_validate)
+
+
+# ---- where the runs execute (issue #18): --executor dask, --scheduler, --worker-wait
+def add_executor_options(p: Any) -> None:
+    p.add_argument("--executor", choices=("local", "dask"), default=None,
+                   help="where runs execute: local worker processes (default) or a dask "
+                   "cluster (pip install \"mpsbench[dask]\"); a worker that is lost is "
+                   "reported and its runs go to another")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="dask scheduler address (implies --executor dask); without it "
+                   "--executor dask starts a local cluster of --jobs workers")
+    p.add_argument("--worker-wait", type=float, default=120.0, metavar="SECONDS",
+                   help="with dask: stop with a message when the cluster has had no worker "
+                   "for this long (default 120)")
+
+
+def executor_for(args: argparse.Namespace, jobs: int) -> Any:
+    """The executor of --executor/--scheduler (None: the local one of run_tasks)."""
+    name = args.executor or ("dask" if args.scheduler else "local")
+    if args.scheduler and name != "dask":
+        raise UsageError("--scheduler goes with --executor dask")
+    if not args.worker_wait > 0:
+        raise UsageError(f"--worker-wait = {args.worker_wait:g} is not allowed: seconds > 0")
+    if name == "local":
+        return None
+    from mpsbench.results.executors import ExecutorError, make_executor
+
+    try:
+        ex = make_executor("dask", jobs=jobs, scheduler=args.scheduler,
+                           worker_wait=args.worker_wait)
+    except ExecutorError as exc:
+        raise UsageError(str(exc)) from None
+    print(f"executor: {ex.describe()}", file=sys.stderr)
+    return ex
+
+
+def progress_for(args: argparse.Namespace, tasks: list[Task]) -> Any:
+    """The progress display (:mod:`mpsbench.results.progress`) that --quiet/--verbose ask."""
+    from mpsbench.results.progress import Progress
+
+    return Progress(tasks, "quiet" if args.quiet else "verbose" if args.verbose else "auto")
+
+
+# ---- ParaView output (issue #18): --vtu, --frames; an output option, not a case parameter
+def add_vtu_options(p: Any) -> None:
+    p.add_argument("--vtu", action="store_true",
+                   help="also keep frames of every run in runs/<run_id>.npz and write a "
+                   "ParaView series per run to paraview/<run_id>.pvd (binary VTU, with time "
+                   "values; needs meshio: pip install \"mpsbench[vtu]\"); changes no run id "
+                   "or result; a run done without frames runs again")
+    p.add_argument("--frames", type=int, default=21, metavar="N",
+                   help="frames per run with --vtu, evenly spaced in time (default 21)")
+
+
+def vtu_frames(args: argparse.Namespace) -> int:
+    """Frames per run (0 without --vtu); a usage error before any run when meshio is missing
+    or N is not allowed."""
+    if not args.vtu:
+        return 0
+    if args.frames < 1:
+        raise UsageError(f"--frames = {args.frames} is not allowed: an integer >= 1")
+    from mpsbench.results.paraview import require_meshio
+
+    require_meshio()
+    return int(args.frames)
+
+
+def frames_retry(rule: Any, frames: int, folder_of: Any) -> Any:
+    """With --vtu, a run whose record exists but whose arrays hold no frames runs again."""
+    if not frames:
+        return rule
+    from mpsbench.results.frames import has_frames
+
+    def retry(record: dict[str, Any]) -> bool:
+        npz = Path(folder_of(record)) / "runs" / f"{record['run_id']}.npz"
+        return bool(rule and rule(record)) or not has_frames(npz)
+
+    return retry
+
+
+def write_paraview(folder: Path, records: list[dict[str, Any]], root: Path) -> None:
+    from mpsbench.results.paraview import export_runs
+
+    pvds, _ = export_runs(folder, [str(r["run_id"]) for r in records], root=root)
+    if pvds:
+        print(f"paraview: {len(pvds)} series in {folder / 'paraview'}", file=sys.stderr)
 
 
 # ---- resuming and the size guard (issue #19): --retry-failed, --yes
@@ -175,13 +269,16 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
     from mpsbench.results.lock import folder_lock
     from mpsbench.results.records import atomic_write_text
     from mpsbench.results.sections import safe_render_case
-    from mpsbench.results.sweep import plan, print_progress, run_tasks
+    from mpsbench.results.sweep import plan, run_tasks
 
     case = get_case(args.case)
     overrides = parse_overrides(case, args.set)
     check_run_count(grid_size(case, args.tier, overrides) * len(solvers), args.yes,
                     f"{case.name} at tier {args.tier}")
     tasks = plan(case, solvers, args.tier, overrides)
+    frames = vtu_frames(args)
+    for task in tasks:
+        task.frames = frames
     out = Path(args.out) if args.out else default_out(args.case, args.tier)
     jobs = args.jobs or 1
     guard_tasks(tasks, jobs=jobs, yes=args.yes)
@@ -189,8 +286,18 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
     t0 = time.perf_counter()
     with folder_lock(out, lock_command(args)):
         print(f"{case.name}: {len(tasks)} runs -> {out}", file=sys.stderr)
-        records = run_tasks(tasks, out, jobs=jobs, force=args.force, progress=print_progress(),
-                            retry=retry_rule(args))
+        executor = executor_for(args, jobs)
+        progress = progress_for(args, tasks)
+        try:
+            records = run_tasks(tasks, out, jobs=jobs, force=args.force, progress=progress,
+                                retry=frames_retry(retry_rule(args), frames, lambda r: out),
+                                executor=executor)
+        finally:
+            progress.close()
+            if executor is not None:
+                executor.close()
+        if frames:
+            write_paraview(out, records, out)
         section = safe_render_case(case, records, out)
         manifest.update(wall_s=round(time.perf_counter() - t0, 1),
                         cases=[{"name": case.name, "error": section.error}])
@@ -236,6 +343,9 @@ def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
         tasks += case_tasks
         print(f"{name}: {len(case_tasks)} runs", file=sys.stderr)
     guard_tasks(tasks, jobs=jobs, yes=args.yes)
+    frames = vtu_frames(args)
+    for task in tasks:
+        task.frames = frames
     with folder_lock(out, lock_command(args)):
         return _validate_all_locked(args, out, jobs, manifest, t0, names, cases, broken, tasks)
 
@@ -258,7 +368,7 @@ def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
     from mpsbench.results.folder import MANIFEST, write_top_level
     from mpsbench.results.records import atomic_write_text
     from mpsbench.results.sections import safe_render_case, verdict
-    from mpsbench.results.sweep import print_progress, run_tasks
+    from mpsbench.results.sweep import run_tasks
 
     print(f"validate all: {len(tasks)} runs of {len(cases)} cases x "
           f"{len(manifest['solvers'])} solver(s), tier {args.tier}, {jobs} job(s) -> {out}",
@@ -267,9 +377,23 @@ def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
                          for n in names]
     atomic_write_text(out / MANIFEST, json.dumps(manifest, indent=1))
     folder = {c.name: out / c.name for c in cases}
-    records = run_tasks(heavy_first(tasks), out, jobs=jobs, force=args.force,
-                        progress=print_progress(), task_dir=lambda t: folder[t.case],
-                        retry=retry_rule(args))
+    frames = tasks[0].frames if tasks else 0
+    executor = executor_for(args, jobs)
+    progress = progress_for(args, tasks)
+    try:
+        records = run_tasks(heavy_first(tasks), out, jobs=jobs, force=args.force,
+                            progress=progress, task_dir=lambda t: folder[t.case],
+                            retry=frames_retry(retry_rule(args), frames,
+                                               lambda r: folder[str(r["case"])]),
+                            executor=executor)
+    finally:
+        progress.close()
+        if executor is not None:
+            executor.close()
+    if frames:
+        for case in cases:
+            write_paraview(folder[case.name],
+                           [r for r in records if r.get("case") == case.name], out)
     sections: list[CaseSection] = []
     for name in names:
         if name in broken:

@@ -69,6 +69,13 @@ class Rendered:
     findings: str
     folder: Path
     headline: str = ""
+    headline_figure: str = ""
+
+    def ordered_figures(self) -> list[Path]:
+        """The figures with the headline one (``Case.headline_figure``, a file stem; default
+        the first the case drew) first."""
+        first = [f for f in self.figures if f.stem == self.headline_figure][:1]
+        return first + [f for f in self.figures if f not in first]
 
     @classmethod
     def from_disk(cls, folder: Path, records: list[dict[str, Any]]) -> Rendered:
@@ -171,7 +178,8 @@ def render_case_outputs(
                       md_escape(findings.strip()) + "\n" if findings.strip() else "")
     atomic_write_text(outdir / "report.md",
                       render_report(case, records, checks, tables, figures, outdir))
-    return Rendered(records, checks, tables, figures, findings, outdir, case.headline)
+    return Rendered(records, checks, tables, figures, findings, outdir, case.headline,
+                    case.headline_figure)
 
 
 def _draw_figures(case: Case, records: list[dict[str, Any]], source: Path,

@@ -346,6 +346,7 @@ def _number(v: Any) -> float | None:
 
 def _metric_names(b: dict[str, Any], c: dict[str, Any], case: Case | None) -> list[str]:
     skip = set(IDENTITY) | set(ENV_COLUMNS) | {p.name for p in (case.params if case else ())}
+    skip |= set(getattr(case, "retired_params", ()))
     return [k for k in dict.fromkeys([*b, *c]) if k not in skip]
 
 

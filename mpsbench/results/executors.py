@@ -211,6 +211,8 @@ class DaskExecutor(Executor):
         n_workers: int | None = None,
         retries: int = 0,
         cluster_kwargs: dict[str, Any] | None = None,
+        worker_wait: float = 120.0,
+        report: Callable[[str], None] | None = None,
     ) -> None:
         _import_distributed()
         if n_workers is not None and (not isinstance(n_workers, int) or n_workers < 1):
@@ -219,6 +221,8 @@ class DaskExecutor(Executor):
         self.n_workers = n_workers
         self.retries = retries
         self.cluster_kwargs = cluster_kwargs or {}
+        self.worker_wait = worker_wait
+        self.report = report or (lambda text: print(text, file=sys.stderr, flush=True))
         self._client: Any = None
         self._cluster: Any = None
         self._own_client = False
@@ -272,8 +276,9 @@ class DaskExecutor(Executor):
             ): task
             for task in tasks
         }
+        watch = _WorkerWatch(client, self.worker_wait, self.report, self.describe())
         try:
-            for fut in distributed.as_completed(list(futures)):
+            for fut in watch.as_completed(distributed, futures):
                 task = futures.pop(fut)
                 try:
                     text, npz = fut.result()
@@ -298,15 +303,77 @@ class DaskExecutor(Executor):
         self._client = self._cluster = None
 
 
+class _WorkerWatch:
+    """Waits for a dask study's runs while watching the cluster's workers (issue 18).
+
+    A worker that leaves is reported with the runs it was processing; the scheduler gives them
+    to another worker (after ``distributed.scheduler.allowed-failures`` deaths of the same run
+    it gives up, and the run is recorded ``failed``).  With no worker at all for
+    ``worker_wait`` seconds the study stops with an :class:`ExecutorError` saying so (the runs
+    not done yet are cancelled; running the study again resumes them).
+    """
+
+    def __init__(self, client: Any, worker_wait: float, report: Callable[[str], None],
+                 where: str) -> None:
+        self.client, self.worker_wait, self.report, self.where = client, worker_wait, report, where
+        self.processing: dict[str, list[str]] = {}
+        self.workers: set[str] = set(self._info())
+        self.none_since: float | None = None
+        self.poll_s = 0.25  # how often the workers are looked at while runs go on
+
+    def _info(self) -> dict[str, Any]:
+        return dict(self.client.scheduler_info().get("workers", {}))
+
+    def as_completed(self, distributed: Any, futures: dict[Any, Task]) -> Iterator[Any]:
+        import time
+
+        names = {f.key: t.run_id for f, t in futures.items()}
+        pending = set(futures)
+        while pending:
+            try:
+                done, _ = distributed.wait(list(pending), timeout=self.poll_s,
+                                           return_when="FIRST_COMPLETED")
+            except (TimeoutError, getattr(distributed, "TimeoutError", TimeoutError)):
+                done = set()
+            self.check(names, time.monotonic())
+            for fut in done:
+                pending.discard(fut)
+                yield fut
+
+    def check(self, names: dict[str, str], now: float) -> None:
+        workers = set(self._info())
+        for gone in sorted(self.workers - workers):
+            runs = [names[k] for k in self.processing.get(gone, []) if k in names]
+            self.report(f"dask: worker {gone} lost; "
+                        + (f"its run(s) go back to the queue: {', '.join(runs)}" if runs
+                           else "no run of this study was seen on it"))
+        for new in sorted(workers - self.workers):
+            self.report(f"dask: worker {new} joined")
+        self.workers = workers
+        if workers:
+            self.none_since = None
+            self.processing = {w: [str(k) for k in keys]
+                               for w, keys in self.client.processing().items()}
+            return
+        self.none_since = self.none_since if self.none_since is not None else now
+        if now - self.none_since >= self.worker_wait:
+            raise ExecutorError(
+                f"no dask worker for {self.worker_wait:g} s ({self.where}): start workers "
+                "('dask worker ADDRESS'), or run with --executor local; the runs not done "
+                "yet run when the study is run again")
+
+
 def make_executor(
-    name: str, *, jobs: int = 1, scheduler: str | None = None
+    name: str, *, jobs: int = 1, scheduler: str | None = None, worker_wait: float = 120.0
 ) -> Executor:
     """An executor by name: ``local`` (``jobs`` processes) or ``dask`` (``scheduler`` address,
-    or a local cluster of ``jobs`` workers when none is given)."""
+    or a local cluster of ``jobs`` workers when none is given; ``worker_wait``: seconds without
+    any worker before the study stops)."""
     if name == "local":
         if scheduler:
             raise ValueError("a scheduler address only goes with the dask executor")
         return LocalExecutor(jobs)
     if name == "dask":
-        return DaskExecutor(scheduler, n_workers=jobs if scheduler is None else None)
+        return DaskExecutor(scheduler, n_workers=jobs if scheduler is None else None,
+                            worker_wait=worker_wait)
     raise ValueError(f"executor = {name!r} is not allowed: one of {', '.join(EXECUTORS)}")

@@ -6,9 +6,8 @@ Layout (``OUT`` defaults to ``reports/<YYYYmmdd-HHMM>-<tier>/``)::
 
     OUT/results.csv, results.json   every record of every case (one per run)
     OUT/summary.md                  per case and solver: pass/fail, finding, headline table
-    OUT/index.html                  one self-contained page (figures embedded, no network)
-    OUT/figures/<case>/<name>.png   copies of every case figure; with several solvers also
-                                    figures/<case>/<solver>/<name>.png (per-solver figures)
+    OUT/index.html                  the page to read (mpsbench.results.html): it links the
+                                    figures of the case folders (stored once, not copied)
     OUT/manifest.json               tier, solvers, command, times, environment, unavailable cases
     OUT/<case>/                     the case folder (runs/, results, tables/, figures/,
                                     checks.json, findings.md, report.md; see
@@ -31,15 +30,13 @@ from typing import Any
 import pandas as pd
 
 from mpsbench.errors import InputFileError
-from mpsbench.results.case_report import Rendered
 from mpsbench.results.html import render_index
-from mpsbench.results.paths import atomic_copy, component, inside, safe_dir
+from mpsbench.results.paths import inside
 from mpsbench.results.records import (
     COMMON_COLUMNS,
     ENV_COLUMNS,
     atomic_write_text,
     load_records,
-    solver_folder,
 )
 from mpsbench.results.sections import CaseSection, exit_ok
 from mpsbench.results.summary import render_summary
@@ -59,33 +56,12 @@ def all_records_frame(records: list[dict[str, Any]], param_names: list[str]) -> 
     return df[first + params + rest + last]
 
 
-def copy_figures(out: Path, sections: list[CaseSection]) -> dict[Path, Path]:
-    """Copy every figure to ``out/figures/<case>/[<solver>/]``; return source -> copy."""
-    copies: dict[Path, Path] = {}
-    for sec in sections:
-        if sec.folder is None or sec.folder.resolve() == out.resolve():
-            continue  # a single-case folder: its figures/ already is the top-level one
-        parts: list[tuple[str, Rendered]] = []
-        several = sec.combined is not None
-        if sec.combined is not None:
-            parts.append(("", sec.combined))
-        parts += [(solver_folder(s.solver) if several else "", s.rendered) for s in sec.solvers]
-        case_dir = out / "figures" / component("case", sec.name)
-        for sub, rendered in parts:
-            dest = case_dir / component("solver", sub) if sub else case_dir
-            for fig in rendered.figures:
-                if fig.exists():
-                    safe_dir(out, dest)
-                    atomic_copy(fig, inside(out, dest / component("figure", fig.name)))
-                    copies[fig] = dest / fig.name
-    return copies
-
-
 def write_top_level(
     out: Path, sections: list[CaseSection], manifest: dict[str, Any], param_names: list[str],
     *, write_results: bool = True,
 ) -> bool:
-    """Write results.csv/json, figures/, summary.md and index.html; return True when every
+    """Write results.csv/json, summary.md and index.html (which links the case folders'
+    figures: each is stored once); return True when every
     case passes its gates (and, when the manifest says ``strict_claims``, no claim is
     refuted)."""
     out.mkdir(parents=True, exist_ok=True)
@@ -94,7 +70,6 @@ def write_top_level(
         atomic_write_text(out / "results.csv",
                           all_records_frame(records, param_names).to_csv(index=False))
         atomic_write_text(out / "results.json", json.dumps(records, indent=1, default=str))
-    copy_figures(out, sections)
     atomic_write_text(out / "summary.md", render_summary(sections, manifest, out))
     atomic_write_text(out / "index.html", render_index(sections, manifest, out))
     return exit_ok(sections, bool(manifest.get("strict_claims")))

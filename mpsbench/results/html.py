@@ -1,15 +1,19 @@
-"""``index.html``: one self-contained page for a results folder.
+"""``index.html``: the page a person reads for a results folder.
 
-Figures are embedded as base64 PNG data URIs, tables are pandas HTML, the style sheet is inline;
-the page loads nothing from the network and opens from a file:// URL or an e-mail attachment.
-Sections: the claims table (the paper's statements: verdict, rule, evidence), the gates
-overview, then one per case and, inside it, one per solver (plus a cross-solver one when
-several solvers ran).
+Order: the claims table (the paper's statements: verdict, and rule and evidence folded
+out) and the gates overview (one row per case and solver) first, then one section per case:
+its headline figure, its findings, gates and claims, its other figures, and its tables folded
+away (``<details>``); with several solvers the cross-solver comparison comes first, then one
+section per solver.
+
+Figures are stored once: the page links the PNG files of the case folders by relative path
+(``<case>/figures/<name>.png``) instead of embedding a second copy of each, so the page stays
+small and still loads nothing from the network (it opens from a file:// URL with its folder).
+Tables are pandas HTML; the style sheet is inline.
 """
 
 from __future__ import annotations
 
-import base64
 import html
 import re
 from pathlib import Path
@@ -50,10 +54,15 @@ th{background:#f0f3f6}td:first-child,th:first-child{text-align:left}
 figure{display:inline-block;margin:.5em 1em 1em 0;vertical-align:top;background:#fff;
  border:1px solid #d0d7de;border-radius:6px;padding:.4em;max-width:100%}
 figure img{max-width:100%;height:auto;display:block}
+figure.headline{display:block;margin:.5em 0 1em}figure.headline img{max-height:80vh}
+div.figures figure{max-width:48%}div.figures figure img{max-height:420px}
+details{margin:.4em 0}details>summary{cursor:pointer;color:#0969da}
+details.tables{border:1px solid #d0d7de;border-radius:6px;padding:.3em .8em;background:#fff}
 figcaption{font-size:.85em;color:#57606a;text-align:center}
 code{background:#eff1f3;border-radius:3px;padding:0 .25em;font-size:.9em}
 ul.checks{list-style:none;padding-left:0}ul.checks li{margin:.2em 0}
-table.claims td{text-align:left;vertical-align:top}
+table.claims td,table.claims th{text-align:left;vertical-align:top}table.claims p{margin:.3em 0}
+table.claims details>summary{color:#57606a}
 """
 
 
@@ -78,31 +87,68 @@ def check_badge(check: CaseCheck) -> str:
 
 
 def claims_html(sections: list[CaseSection]) -> list[str]:
-    """The claims table: one row per claim tested, the verdict as a badge."""
+    """The claims table: one row per claim tested, the verdict as a badge; each row's rule,
+    evidence and source fold out (``<details>``), so the table stays a screen tall."""
     rows = claim_rows(sections)
     if not rows:
         return []
-    cols = list(rows[0])
-    head = "".join(f"<th>{esc(c)}</th>" for c in cols)
+    shown = [c for c in rows[0] if c not in ("source", "rule", "evidence")]
+    head = "".join(f"<th>{esc(c)}</th>" for c in shown) + "<th>rule and evidence</th>"
     body = []
     for row in rows:
         cells = "".join(
             f"<td>{claim_badge(str(row[c])) if c == 'verdict' else _inline(str(row[c]))}</td>"
-            for c in cols)
-        body.append(f"<tr>{cells}</tr>")
+            for c in shown)
+        more = (f"<details><summary>{_inline(_clip(str(row['evidence'])))}</summary>"
+                f"<p><em>Evidence:</em> {_inline(str(row['evidence']))}</p>"
+                f"<p><em>Rule:</em> {_inline(str(row['rule']))}</p>"
+                f"<p><em>Source:</em> {_inline(str(row['source']))}</p></details>")
+        body.append(f"<tr>{cells}<td>{more}</td></tr>")
     return ['<h2 id="claims">Claims</h2>', f"<p>{_inline(CLAIMS_INTRO)}</p>",
             f'<div class="scroll"><table class="claims"><tr>{head}</tr>{"".join(body)}'
             "</table></div>"]
 
 
+def _clip(text: str, n: int = 60) -> str:
+    """The start of ``text`` (at a word boundary) for a folded cell's one-line summary."""
+    text = " ".join(text.split())
+    return text if len(text) <= n else text[:n].rsplit(" ", 1)[0] + " ..."
+
+
+def overview_html(rows: list[dict[str, Any]]) -> str:
+    """The gates overview: one row per (case, solver), the case linked to its section and
+    the result as a badge."""
+    if not rows:
+        return "<p><em>(no cases)</em></p>"
+    cols = list(rows[0])
+    head = "".join(f"<th>{esc(c)}</th>" for c in cols)
+    body = []
+    for row in rows:
+        cells = []
+        for c in cols:
+            v = row[c]
+            if c == "case":
+                target = anchor(str(v), str(row["solver"])) if row.get("solver") else anchor(str(v))
+                cells.append(f'<td><a href="#{target}">{esc(v)}</a></td>')
+            elif c == "result":
+                cells.append(f"<td>{badge(v == 'PASS')}</td>")
+            else:
+                cells.append(f"<td>{esc(v)}</td>")
+        body.append(f"<tr>{''.join(cells)}</tr>")
+    return f'<div class="scroll"><table><tr>{head}</tr>{"".join(body)}</table></div>'
+
+
 def _inline(text: str) -> str:
     """Escape, then Markdown's inline code, bold, emphasis and links.
 
-    Only http(s), relative and ``#`` link targets become links (:func:`safe_href`); any other
+    reST's double backticks are read as inline code too.  Only http(s), relative and ``#``
+    link targets become links (:func:`safe_href`); any other
     (``javascript:``, ``data:``, ...) stays text, since findings, check details and manifest
     fields can carry text from records and plugins.
     """
     out = esc(text)
+    # reST's ``literal`` (case descriptions are docstrings) before Markdown's `code`
+    out = re.sub(r"``(.+?)``", r"<code>\1</code>", out)
     out = re.sub(r"`([^`]+)`", r"<code>\1</code>", out)
     out = re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", out)
     out = re.sub(r"(?<![\w*])\*([^*\s][^*]*)\*(?![\w*])", r"<em>\1</em>", out)
@@ -180,13 +226,23 @@ def table_html(df: pd.DataFrame, *, index: bool = True) -> str:
     return f'<div class="scroll">{table}</div>'
 
 
-def image_html(path: Path) -> str:
+def image_html(path: Path, out: Path, *, headline: bool = False) -> str:
+    """A figure linked (not embedded) by its path relative to the page's folder ``out``: the
+    PNG is stored once, in its case folder; a click opens it at full size."""
+    if not path.is_file():
+        return f'<p class="error">figure {esc(path.name)} is missing</p>'
+    href = esc(_relfile(path, out))
+    cls = ' class="headline"' if headline else ""
+    return (f'<figure{cls}><a href="{href}"><img src="{href}" alt="{esc(path.stem)}" '
+            f'loading="lazy"></a><figcaption>{esc(path.stem)}</figcaption></figure>')
+
+
+def _relfile(path: Path, out: Path) -> str:
+    """``path`` relative to the page's folder (a file:// URL when it is outside it)."""
     try:
-        data = base64.b64encode(path.read_bytes()).decode("ascii")
-    except OSError as exc:
-        return f'<p class="error">figure {esc(path.name)} is missing: {esc(exc)}</p>'
-    return (f'<figure><img src="data:image/png;base64,{data}" alt="{esc(path.stem)}">'
-            f"<figcaption>{esc(path.stem)}</figcaption></figure>")
+        return path.resolve().relative_to(out.resolve()).as_posix()
+    except ValueError:
+        return path.resolve().as_uri()
 
 
 def _relpath(folder: Path, out: Path) -> str:
@@ -202,53 +258,77 @@ def anchor(*parts: str) -> str:
     return re.sub(r"[^A-Za-z0-9_-]+", "-", "--".join(parts))
 
 
-def rendered_html(r: Rendered, *, checks: bool = True) -> list[str]:
-    out: list[str] = []
+def tables_html(tables: dict[str, pd.DataFrame], head: tuple[str, pd.DataFrame] | None
+                ) -> list[str]:
+    """The tables, each folded in its own ``<details>`` (the headline table first)."""
+    if not tables:
+        return []
+    names = ([head[0]] if head else []) + [n for n in tables if not head or n != head[0]]
+    out = [f'<details class="tables"><summary>Tables ({len(names)}): '
+           f'{esc(", ".join(names))}</summary>']
+    for name in names:
+        mark = " <small>(headline)</small>" if head and name == head[0] else ""
+        out += [f"<details><summary>{esc(name)}{mark}</summary>", table_html(tables[name]),
+                "</details>"]
+    return out + ["</details>"]
+
+
+def figures_html(figures: list[Path], out: Path) -> tuple[list[str], list[str]]:
+    """The first figure (the headline one, :meth:`Rendered.ordered_figures` puts it first) at
+    full width, and the others side by side."""
+    if not figures:
+        return [], []
+    rest = [image_html(f, out) for f in figures[1:]]
+    return ([image_html(figures[0], out, headline=True)],
+            ['<div class="figures">', *rest, "</div>"] if rest else [])
+
+
+def rendered_html(r: Rendered, out: Path, *, checks: bool = True) -> list[str]:
+    """One (case, solver): headline figure, findings, gates, claims, the other figures, the
+    runs that did not complete, then the tables folded away."""
+    html_out: list[str] = []
     if r.failures and checks:
-        out.append(f'<p class="error">Fails: {esc("; ".join(r.failures))}.</p>')
+        html_out.append(f'<p class="error">Fails: {esc("; ".join(r.failures))}.</p>')
+    first, rest = figures_html(r.ordered_figures(), out)
+    html_out += first
+    if r.findings.strip():
+        html_out += ["<h4>Findings</h4>", markdown_html(r.findings)]
+    if r.gates and checks:
+        html_out.append('<h4>Gates</h4><ul class="checks">')
+        html_out += [f"<li>{badge(c.passed)} <strong>{esc(c.name)}</strong>: "
+                     f"{_inline(c.detail)}</li>" for c in r.gates]
+        html_out.append("</ul>")
+    if r.claims and checks:
+        html_out.append('<h4>Claims</h4><ul class="checks">')
+        html_out += [f"<li>{check_badge(c)} <strong>{esc(c.claim)}</strong> {esc(c.name)} "
+                     f"<em>Rule:</em> {_inline(c.rule)} <em>Evidence:</em> "
+                     f"{_inline(c.detail)}</li>" for c in r.claims]
+        html_out.append("</ul>")
+    if rest:
+        html_out += ["<h4>More figures</h4>", *rest]
     bad = [x for x in r.records if x.get("status") != "completed"]
     if bad:
-        out.append(f"<p>{len(bad)} run(s) did not complete:</p><ul>")
-        out += [f"<li><code>{esc(x.get('run_id', '?'))}</code>: {esc(x.get('status'))}: "
-                f"{esc(x.get('reason', ''))}</li>" for x in bad[:20]]
-        out.append("</ul>")
-    if r.findings.strip():
-        out += ["<h4>Findings</h4>", markdown_html(r.findings)]
-    if r.gates and checks:
-        out.append('<h4>Gates</h4><ul class="checks">')
-        out += [f"<li>{badge(c.passed)} <strong>{esc(c.name)}</strong>: {_inline(c.detail)}</li>"
-                for c in r.gates]
-        out.append("</ul>")
-    if r.claims and checks:
-        out.append('<h4>Claims</h4><ul class="checks">')
-        out += [f"<li>{check_badge(c)} <strong>{esc(c.claim)}</strong> {esc(c.name)} "
-                f"<em>Rule:</em> {_inline(c.rule)} <em>Evidence:</em> {_inline(c.detail)}</li>"
-                for c in r.claims]
-        out.append("</ul>")
-    head = r.headline_table()
-    names = ([head[0]] if head else []) + [n for n in r.tables if not head or n != head[0]]
-    for name in names:
-        out += [f"<h4>Table: {esc(name)}</h4>", table_html(r.tables[name])]
-    if r.figures:
-        out.append("<h4>Figures</h4><div>")
-        out += [image_html(f) for f in r.figures]
-        out.append("</div>")
-    return out
+        html_out.append(f"<details><summary>{len(bad)} run(s) did not complete</summary><ul>")
+        html_out += [f"<li><code>{esc(x.get('run_id', '?'))}</code>: {esc(x.get('status'))}: "
+                     f"{esc(x.get('reason', ''))}</li>" for x in bad[:20]]
+        html_out.append("</ul></details>")
+    html_out += tables_html(r.tables, r.headline_table())
+    return html_out
 
 
-def combined_html(sec: CaseSection) -> list[str]:
-    """With several solvers: the metrics side by side and the case's all-solver figures."""
-    figures = sec.combined.figures if sec.combined is not None else []
+def combined_html(sec: CaseSection, out: Path) -> list[str]:
+    """With several solvers: the case's all-solver figures and the metrics side by side."""
+    figures = sec.combined.ordered_figures() if sec.combined is not None else []
     has_table = sec.by_solver is not None and not sec.by_solver.empty
     if not figures and not has_table:
         return []
-    out = [f'<section class="solver" id="{anchor(sec.name, "all-solvers")}">',
-           "<h3>all solvers compared</h3>"]
+    body = [f'<section class="solver" id="{anchor(sec.name, "all-solvers")}">',
+            "<h3>all solvers compared</h3>"]
+    first, rest = figures_html(figures, out)
+    body += first + rest
     if sec.by_solver is not None and has_table:
-        out += ["<h4>Metrics by solver</h4>", table_html(sec.by_solver)]
-    if figures:
-        out += ["<h4>Figures (all solvers)</h4><div>", *[image_html(f) for f in figures], "</div>"]
-    return out + ["</section>"]
+        body += tables_html({"metrics by solver": sec.by_solver}, None)
+    return body + ["</section>"]
 
 
 def render_index(sections: list[CaseSection], manifest: dict[str, Any], out: Path) -> str:
@@ -258,42 +338,37 @@ def render_index(sections: list[CaseSection], manifest: dict[str, Any], out: Pat
     counts = f' <small>claims: {esc(claim_counts(claims))}</small>' if claims else ""
     body = [f"<h1>mpsbench validation ({esc(manifest.get('tier', '?'))}) {badge(ok)}{counts}</h1>",
             f'<p class="meta">{_inline(header_lines(manifest)[0])}</p>']
-    nav = ['<nav><a href="#claims"><strong>Claims</strong></a> '
-           '<a href="#gates"><strong>Gates</strong></a><strong>Cases</strong><ul>']
-    for sec in sections:
-        subs = "".join(f'<a href="#{anchor(sec.name, s.solver)}">{esc(s.solver)}</a>'
-                       for s in sec.solvers)
-        nav.append(f'<li><a href="#{anchor(sec.name)}">{esc(sec.title or sec.name)}</a> '
-                   f"{badge(sec.passed)} <small>{subs}</small></li>")
-    nav.append("</ul></nav>")
-    body += nav
-    body += claims_html(sections)
-    overview = pd.DataFrame(overview_rows(sections))
+    links = " ".join(f'<a href="#{anchor(sec.name)}">{esc(sec.name)}</a>' for sec in sections)
+    body.append('<nav>' + ('<a href="#claims"><strong>Claims</strong></a> ' if claims else "")
+                + '<a href="#gates"><strong>Gates</strong></a> '
+                + f"<strong>Cases:</strong> {links}</nav>")
+    body += claims_html(sections)  # as in summary.md: the claims, then the gates
     body += ['<h2 id="gates">Gates</h2>', f"<p>{_inline(GATES_INTRO)}</p>",
-             table_html(overview, index=False)]
+             overview_html(overview_rows(sections))]
     for sec in sections:
         body.append(f'<section class="case" id="{anchor(sec.name)}">')
         body.append(f"<h2>{esc(sec.title or sec.name)} <code>{esc(sec.name)}</code> "
                     f"{badge(sec.passed)}</h2>")
-        if sec.description:
-            body.append(markdown_html(sec.description))
-        if sec.folder is not None and (sec.folder / "report.md").exists():
-            rel = _relpath(sec.folder, out)
-            links = ", ".join(f'<a href="{esc(rel + name)}">{esc(name)}</a>'
-                              for name in ("report.md", "results.csv", "tables/")
-                              if (sec.folder / name).exists())
-            body.append(f'<p class="meta">Case folder <code>{esc(rel or "./")}</code>: {links}</p>')
+        if sec.description:  # the case's setup: one line until opened
+            body += ["<details><summary>About this case</summary>",
+                     markdown_html(sec.description), "</details>"]
         if sec.error:
             body.append(f'<p class="error">{esc(sec.error)}</p>')
+        if sec.combined is not None:
+            body += combined_html(sec, out)
         for s in sec.solvers:
             r = s.rendered
             body.append(f'<section class="solver" id="{anchor(sec.name, s.solver)}">')
             body.append(f"<h3>solver {esc(s.solver)} {esc(s.version)} {badge(r.passed)}</h3>")
             body.append(f'<p class="meta">{len(r.records)} runs, {r.completed} completed.</p>')
-            body += rendered_html(r)
+            body += rendered_html(r, out)
             body.append("</section>")
-        if sec.combined is not None:
-            body += combined_html(sec)
+        if sec.folder is not None and (sec.folder / "report.md").exists():
+            rel = _relpath(sec.folder, out)
+            links = ", ".join(f'<a href="{esc(rel + name)}">{esc(name)}</a>'
+                              for name in ("report.md", "results.csv", "tables/", "figures/")
+                              if (sec.folder / name).exists())
+            body.append(f'<p class="meta">Case folder <code>{esc(rel or "./")}</code>: {links}</p>')
         body.append("</section>")
     return ("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
             f"<title>{esc(title)}</title><style>{CSS}</style></head>\n<body><main>\n"

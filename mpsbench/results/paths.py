@@ -1,7 +1,7 @@
 """Paths a report writes: always inside its results folder, written atomically.
 
 Case, solver and run names from records become folder and file names (``<case>/``,
-``by-solver/<solver>/``, ``figures/<case>/<solver>/``).  They are checked when a record is read
+``by-solver/<solver>/``).  They are checked when a record is read
 (:func:`mpsbench.results.records.record_problem`); :func:`inside` checks every path written on
 top of that, after resolving symbolic links, so no record, plugin or link can make a report
 write outside its folder.

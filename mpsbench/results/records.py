@@ -4,7 +4,8 @@ environment every record carries.
 Output folder layout::
 
     OUT/runs/<run_id>.json   one record per run (written atomically: temp file + rename)
-    OUT/runs/<run_id>.npz    arrays the case keeps for its figures (profiles, snapshots)
+    OUT/runs/<run_id>.npz    arrays the case keeps for its figures (profiles, snapshots),
+                             and the frames of --vtu (mpsbench.results.frames says what it holds)
 
 Failed and diverged runs are recorded with their reason.  Every record carries the common columns
 documented in docs/columns.md.  Sweeps over many tasks are :mod:`mpsbench.results.sweep`.
@@ -29,7 +30,9 @@ import numpy as np
 from mpsbench.cases import get_case
 from mpsbench.errors import InputFileError, where
 from mpsbench.registry import name_problem
+from mpsbench.results.frames import frame_arrays
 from mpsbench.results.identity import HASH_COLUMN, run_hash, task_hash
+from mpsbench.run.frames import keeping_frames
 from mpsbench.run.protocol import Status
 from mpsbench.run.specs import solver_spec
 
@@ -102,6 +105,9 @@ class Task:
     params: dict[str, Any]
     run_id: str
     run_hash: str = ""
+    # an output option, not part of the run's identity: frames to keep for ParaView
+    # (validate --vtu; mpsbench.run.frames), stored in runs/<run_id>.npz
+    frames: int = 0
 
     def __post_init__(self) -> None:
         if not self.run_hash:
@@ -179,7 +185,8 @@ def execute_task(task: Task, outdir: str, env: dict[str, Any]) -> dict[str, Any]
     arrays: dict[str, np.ndarray] = {}
     try:
         case = get_case(task.case)
-        out = case.execute(dict(task.params), task.solver)
+        with keeping_frames(task.frames):
+            out = case.execute(dict(task.params), task.solver)
         results = out.results
         statuses = [r.status for r in results]
         status = Status.COMPLETED
@@ -201,7 +208,7 @@ def execute_task(task: Task, outdir: str, env: dict[str, Any]) -> dict[str, Any]
             n_solver_runs=len(statuses),
         )
         record.update({k: _plain(v) for k, v in out.metrics.items()})
-        arrays = out.arrays
+        arrays = {**out.arrays, **frame_arrays(results)}
     except Exception as exc:  # noqa: BLE001 - a broken case or solver is recorded, not fatal
         record.update(
             status=Status.FAILED.value, reason=f"{type(exc).__name__}: {exc}{where(exc)}",

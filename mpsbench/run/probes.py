@@ -10,9 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from pathlib import Path
 from typing import Any
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 from numpy.typing import NDArray
@@ -256,49 +254,3 @@ class Callback(Probe):
 
     def measure(self, solver: Any) -> Any:
         return self.fn(solver)
-
-
-def write_vtu(path: str | Path, p: Particles) -> Path:
-    """Write particles as a VTK UnstructuredGrid (.vtu, ASCII) of vertices for ParaView."""
-    path = Path(path)
-    n = p.n
-    pts = np.column_stack([p.pos, np.zeros(n)])
-    arrays = {
-        "velocity": np.column_stack([p.vel, np.zeros(n)]),
-        "pressure": p.pressure,
-        "kind": p.kind.astype(float),
-        **p.fields,
-    }
-
-    def ints(r: range) -> str:
-        return " ".join(map(str, r))
-
-    def fmt(a: FloatArray) -> str:
-        return " ".join(f"{v:.9g}" for v in np.ravel(a))
-
-    data = []
-    for name, a in arrays.items():
-        a = np.asarray(a, float)
-        comps = a.shape[1] if a.ndim == 2 else 1
-        data.append(
-            f'<DataArray type="Float64" Name={quoteattr(name)} NumberOfComponents="{comps}" '
-            f'format="ascii">{fmt(a)}</DataArray>'
-        )
-    xml = (
-        '<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid" version="0.1" '
-        'byte_order="LittleEndian">\n<UnstructuredGrid>\n'
-        f'<Piece NumberOfPoints="{n}" NumberOfCells="{n}">\n'
-        f'<Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">{fmt(pts)}'
-        "</DataArray></Points>\n"
-        "<Cells>"
-        f'<DataArray type="Int64" Name="connectivity" format="ascii">{ints(range(n))}'
-        "</DataArray>"
-        f'<DataArray type="Int64" Name="offsets" format="ascii">{ints(range(1, n + 1))}'
-        "</DataArray>"
-        f'<DataArray type="UInt8" Name="types" format="ascii">{" ".join(["1"] * n)}</DataArray>'
-        "</Cells>\n"
-        f"<PointData>{''.join(data)}</PointData>\n"
-        "</Piece>\n</UnstructuredGrid>\n</VTKFile>\n"
-    )
-    path.write_text(xml)
-    return path

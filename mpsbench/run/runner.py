@@ -21,6 +21,7 @@ import numpy as np
 from mpsbench.errors import where
 from mpsbench.physics.config import FlowPhysics
 from mpsbench.physics.particles import Particles
+from mpsbench.run.frames import Frame, recorder
 from mpsbench.run.probes import Probe
 from mpsbench.run.protocol import Problem, Solver, Status, UnsupportedProblem, health_of
 from mpsbench.run.specs import make_solver
@@ -45,6 +46,7 @@ class RunResult:
     solver_name: str = ""
     solver_version: str = ""
     setup_time_s: float = 0.0
+    frames: list[Frame] = field(default_factory=list)  # with keeping_frames (run/frames.py)
 
     @property
     def ok(self) -> bool:
@@ -112,8 +114,11 @@ def run(
     t_loop = _time.perf_counter()
     # Overflow, invalid and divide-by-zero in a step mean the run has broken down.
     old_err = np.seterr(over="raise", invalid="raise", divide="raise", under="ignore")
+    frames = recorder(end_time, max_steps)  # never shortens a step: results stay the same
     try:
         _observe(probes, s)
+        if frames is not None:
+            frames.maybe_record(s)
         while True:
             if max_steps is not None and s.n_steps >= max_steps:
                 break
@@ -133,6 +138,8 @@ def run(
                 s.time = nxt
             _check(s, problem, max_speed, margin, field0, limits)
             _observe(probes, s)
+            if frames is not None:
+                frames.maybe_record(s)
             if progress is not None:
                 progress(s.time, s.n_steps)
     except (Diverged, FloatingPointError) as exc:
@@ -144,6 +151,8 @@ def run(
     finally:
         np.seterr(**old_err)
     wall = _time.perf_counter() - t_loop
+    if frames is not None:
+        frames.finish(s)
     if status != Status.COMPLETED:
         reason = f"{reason} [t = {s.time:.6g} s, step {s.n_steps}]"
     s.status = status
@@ -163,6 +172,7 @@ def run(
         solver_name=s.name,
         solver_version=str(s.version),
         setup_time_s=setup_time,
+        frames=frames.frames if frames is not None else [],
     )
 
 

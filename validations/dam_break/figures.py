@@ -10,9 +10,6 @@ from typing import Any
 
 import numpy as np
 
-from mpsbench.physics.particles import Particles
-from mpsbench.run.probes import write_vtu
-
 from .. import experiments
 from .analysis import KO, LOB, _num, _ok, label
 
@@ -102,6 +99,9 @@ def _snapshot_figure(
             ax.set_aspect("equal")
             ax.set_title(f"{label(r)}\n{sym} = {d['snap_labels'][k]:g}", fontsize=8)
             ax.tick_params(labelsize=7)
+            ax.set_xlabel("x [m]", fontsize=7)
+            if k == 0:
+                ax.set_ylabel("y [m]", fontsize=7)
     if sc is not None:
         fig.colorbar(sc, ax=axes, shrink=0.8, label="p / (rho g H)")
     fig.suptitle(f"Dam break ({geometry}): particles coloured by pressure, same scale for both")
@@ -197,23 +197,6 @@ def _pressure_figure(
     return path
 
 
-def write_vtus(
-    records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]], runs_dir: Path
-) -> list[Path]:
-    """runs/<run_id>_T<k>.vtu (or _tstar<k> for lobovsky) for every run with vtu = true."""
-    out = []
-    for r in records:
-        if not (r.get("vtu") is True and _ok(r)):
-            continue
-        d = arrays(r["run_id"])
-        sym = "T" if r.get("geometry") == KO else "tstar"
-        for k, lab in enumerate(d.get("snap_labels", [])):
-            p = Particles(d[f"snap{k}_pos"], d[f"snap{k}_vel"], d[f"snap{k}_kind"], d[f"snap{k}_p"])
-            runs_dir.mkdir(parents=True, exist_ok=True)
-            out.append(write_vtu(runs_dir / f"{r['run_id']}_{sym}{lab:g}.vtu", p))
-    return out
-
-
 def figures(
     records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]], outdir: Path
 ) -> list[Path]:
@@ -223,5 +206,4 @@ def figures(
         _pressure_figure(records, arrays, outdir / "impact_pressure_lobovsky.png"),
         _snapshot_figure(records, arrays, LOB, outdir / "snapshots_lobovsky.png"),
     ]
-    write_vtus(records, arrays, outdir.parent / "runs")
     return [p for p in made if p is not None]

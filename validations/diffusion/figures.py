@@ -113,6 +113,8 @@ def _fig_error_maps(
             ax.set_aspect("equal")
             ax.set_xticks([0, 0.5, 1])
             ax.set_yticks([0, 0.5, 1])
+            ax.set_xlabel("x / L")
+            ax.set_ylabel("y / L")
     fig.suptitle(f"Diffusion: (phi - phi_exact) / max|phi_exact| at t_end; {weight}, "
                  f"r_e/l0 = {re:g}, l0 = {an.fraction(l0)} (colour scale per panel)")
     return pl.save(fig, outdir / "error_maps.png")

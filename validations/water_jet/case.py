@@ -131,6 +131,7 @@ class WaterJetCase(Case):
     }
     compare = COMPARE
     headline = "headline_with_u_num"
+    headline_figure = "plate_cp"
     # u_num of the plate and noise measures (docs/method.md section 9): in l0 at fixed cfl (dt
     # shrinks with l0) and in cfl; WC-MPS is first order, the order assumed with two levels
     refinements = (

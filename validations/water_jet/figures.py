@@ -178,12 +178,15 @@ def _noise_bars(prs: list, outdir: Path) -> Path | None:
     if not prs:
         return None
     plt = _plt()
-    measures = [("noise_spatial", "spatial noise"), ("noise_temporal", "temporal noise"),
-                ("density_drift_mean", "mean |n/n0 - 1|")]
-    fig, axes = plt.subplots(1, 3, figsize=(13, 0.9 + 0.35 * len(prs)), constrained_layout=True)
+    measures = [("noise_spatial", "spatial noise", "RMS of p - neighbour mean, over rho U^2/2 (-)"),
+                ("noise_temporal", "temporal noise", "std / mean of stagnation Cp (-)"),
+                ("density_drift_mean", "mean |n/n0 - 1|", "number-density drift (-)")]
+    # at least 2.4 in tall: with one pair the bars are otherwise a sliver
+    fig, axes = plt.subplots(1, 3, figsize=(13, max(2.4, 1.2 + 0.45 * len(prs))),
+                             constrained_layout=True)
     y = np.arange(len(prs))
     names = [label(on) for _, on in prs]
-    for ax, (m, title) in zip(axes, measures, strict=True):
+    for ax, (m, title, xlabel) in zip(axes, measures, strict=True):
         off = [p[0].get(m) or 0.0 for p in prs]
         on = [p[1].get(m) or 0.0 for p in prs]
         ax.barh(y - 0.2, off, 0.4, color="tab:red", label="stabilization off")
@@ -191,6 +194,7 @@ def _noise_bars(prs: list, outdir: Path) -> Path | None:
         ax.set_yticks(y, names if ax is axes[0] else [""] * len(y), fontsize=7)
         ax.invert_yaxis()
         ax.set_title(title)
+        ax.set_xlabel(xlabel)
         ax.grid(axis="x", alpha=0.3)
         ax.ticklabel_format(axis="x", style="sci", scilimits=(-2, 3))
     handles, labels = axes[0].get_legend_handles_labels()
