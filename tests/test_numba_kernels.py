@@ -517,3 +517,20 @@ def test_model_kernels_load_from_the_disk_cache_in_a_new_process(tmp_path):
     ]
     assert runs[0] == ["0", "1"], runs  # compiled and saved
     assert runs[1] == ["1", "0"], runs  # loaded: no compilation in the second process
+
+
+def test_compile_watch_counts_compilations_not_calls_of_compiled_code():
+    """What the solver reports as its JIT time (timings['jit_compile_s'], compile_times)."""
+    from mpsbench.solvers.numba_backend._jit import watch_compiles
+
+    @numba.njit
+    def plus_one(x):  # type: ignore[no-untyped-def]
+        return x + 1
+
+    with watch_compiles() as watch:
+        assert plus_one(1) == 2
+    assert watch.kernels == 1 and watch.seconds > 0.0
+    assert list(watch.each) == [plus_one.py_func.__qualname__]
+    with watch_compiles() as again:
+        assert plus_one(2) == 3
+    assert again.kernels == 0 and again.seconds == 0.0

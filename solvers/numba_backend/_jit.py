@@ -27,12 +27,16 @@ recursively (a plugin's formula included).  Any edit to any of them compiles ane
 from __future__ import annotations
 
 import hashlib
+import sys
+import time
 import types
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
 from numba import njit
+from numba.core import event
 from numba.core.caching import FunctionCache
 from numba.core.dispatcher import Dispatcher
 
@@ -100,6 +104,71 @@ def factory(build: Callable[..., Any]) -> Callable[..., Any]:
     get.__doc__ = build.__doc__
     get.__wrapped__ = build  # type: ignore[attr-defined]
     return get
+
+
+# --------------------------------------------------------------------------- compile time
+
+
+class CompileWatch(event.Listener):
+    """Counts and times numba's compilations while installed (:func:`watch_compiles`).  A
+    kernel loaded from the disk cache is not a compilation; the functions a kernel calls are
+    compiled inside its compilation (nested events) and counted with it."""
+
+    def __init__(self) -> None:
+        self.kernels = 0
+        self.seconds = 0.0
+        self.each: dict[str, float] = {}  # kernel name -> seconds
+        self._depth = 0
+        self._t0 = 0.0
+
+    def on_start(self, ev: Any) -> None:
+        if self._depth == 0:
+            if self.kernels == 0:
+                announce()
+            self._t0 = time.perf_counter()
+        self._depth += 1
+
+    def on_end(self, ev: Any) -> None:
+        self._depth -= 1
+        if self._depth == 0:
+            took = time.perf_counter() - self._t0
+            self.kernels += 1
+            self.seconds += took
+            disp = (ev.data or {}).get("dispatcher")
+            name = getattr(getattr(disp, "py_func", None), "__qualname__", "?")
+            self.each[name] = self.each.get(name, 0.0) + took
+
+
+_announced = False
+
+
+def announce() -> None:
+    """Say, once per process, that kernels are being compiled (a cold cache: several seconds)."""
+    global _announced
+    if not _announced:
+        _announced = True
+        print("numba: compiling the kernels this run needs (first use of these models; later "
+              "runs load them from the disk cache) ...", file=sys.stderr, flush=True)
+
+
+_reported = False
+
+
+def report(kernels: int, seconds: float) -> None:
+    """After the announcement: how many kernels took how long (once per process)."""
+    global _reported
+    if _announced and not _reported and kernels:
+        _reported = True
+        print(f"numba: compiled {kernels} kernels in {seconds:.1f} s", file=sys.stderr,
+              flush=True)
+
+
+@contextmanager
+def watch_compiles() -> Iterator[CompileWatch]:
+    """Count and time the compilations inside the block."""
+    watch = CompileWatch()
+    with event.install_listener("numba:compile", watch):
+        yield watch
 
 
 # --------------------------------------------------------------------------- the disk cache

@@ -45,6 +45,7 @@ from mpsbench.run.protocol import Capabilities, Health, Problem
 from mpsbench.run.scheme import EquationOfState, SchemeSolver
 
 from . import formulas, fused, kernels, steps
+from ._jit import report, watch_compiles
 from .cells import CSRNeighbours, build_csr
 from .geometry import box_period
 from .layout import Birth, morton_order
@@ -105,6 +106,8 @@ class NumbaSolver(SchemeSolver):
         self.sort = bool(sort)
         self.threads = 1
         self.timings: dict[str, float] = {}
+        self._watched: list[Any] = []
+        self.compile_times: dict[str, float] = {}  # kernel -> seconds compiling (cache misses)
 
     def _k(self, fn: Any) -> Any:
         """The build of a compiled kernel for this run: serial on one thread (:mod:`._jit`)."""
@@ -121,13 +124,26 @@ class NumbaSolver(SchemeSolver):
     def setup(self, problem: Problem) -> None:
         self.threads = self._choose_threads(problem.particles.n)
         t0 = time.perf_counter()
-        with _threads(self.threads):
+        with _threads(self.threads), watch_compiles() as watch:
             super().setup(problem)
         self.timings["setup_s"] = time.perf_counter() - t0
+        self._watched = [watch]  # the first step compiles the step's kernels: watched too
 
     def step(self, dt: float) -> None:
-        with _threads(self.threads):
+        if not self._watched:
+            with _threads(self.threads):
+                super().step(dt)
+            return
+        with _threads(self.threads), watch_compiles() as watch:
             super().step(dt)
+        self._watched.append(watch)
+        kernels = sum(w.kernels for w in self._watched)
+        seconds = sum(w.seconds for w in self._watched)
+        self.timings["jit_compile_s"] = seconds
+        self.timings["kernels_compiled"] = kernels
+        self.compile_times = {k: v for w in self._watched for k, v in w.each.items()}
+        self._watched = []
+        report(kernels, seconds)
 
     def _compile(self) -> None:
         """The compiled models of this run and the constants in front of their sums."""
