@@ -25,13 +25,15 @@ the install command, so the solver registry lists ``numba`` as unavailable with 
   diffusion operator as per-entry coefficients.
 * :mod:`.mirror`: the ``mirror`` wall velocities (kernel-weighted linear fit at mirror points).
 * :mod:`.timing`: ``python -m mpsbench.solvers.numba_backend.timing`` times one pass of the row
-  kernels against the numpy operators.
+  kernels against the numpy operators; :mod:`.traffic`: ``python -m
+  mpsbench.solvers.numba_backend.traffic`` counts the bytes a step streams (docs/performance.md).
 
 Compiled code is cached on disk (in ``__pycache__`` next to the sources, or ``NUMBA_CACHE_DIR``),
 one entry per kernel and model combination, keyed by a fingerprint of the code it depends on
-(:mod:`._jit`): the first process compiles the kernels its run needs (about 20 CPU-s for the
-default dam break), later ones load them in about 0.5 s (``mpsbench bench`` reports it as
-``jit_compile_s``).
+and the kernel's compile flags (:mod:`._jit`): the first process compiles the kernels its run
+needs (12 for the default dam break on one thread, about 20 CPU-s; the first compilation in a
+process is announced on stderr and its total reported), later ones load them in about 1 s
+(``mpsbench bench`` reports it as ``jit_compile_s``).
 """
 
 import os
