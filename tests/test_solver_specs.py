@@ -76,11 +76,11 @@ def test_specs_are_parsed_validated_and_canonical(tunable: type) -> None:
 
 def test_numba_declares_threads_and_sort() -> None:
     pytest.importorskip("numba")
-    spec = solver_spec("numba:threads=1,sort=false")
-    assert spec.text == "numba:threads=1,sort=false"
+    spec = solver_spec("numba:threads=1,sort=true")
+    assert spec.text == "numba:threads=1,sort=true"
     s: Any = make_solver(spec)
-    assert s.requested_threads == 1 and s.sort is False
-    assert solver_spec("numba:threads=0,sort=true").text == "numba"
+    assert s.requested_threads == 1 and s.sort is True
+    assert solver_spec("numba:threads=0,sort=false").text == "numba"
 
 
 def test_records_keep_name_and_options_apart(tunable: type, tmp_path: Path) -> None:
@@ -132,7 +132,7 @@ def test_solvers_lists_each_backends_options(capsys: pytest.CaptureFixture[str])
     assert rows["reference"]["options"] == []
     assert cli.main(["solvers"]) == 0
     out = capsys.readouterr().out
-    assert "options (--solver numba:key=value,...):" in out and "sort (default true" in out
+    assert "options (--solver numba:key=value,...):" in out and "sort (default false" in out
 
 
 # --------------------------------------------------------------------------- health

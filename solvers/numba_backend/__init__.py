@@ -19,8 +19,8 @@ the install command, so the solver registry lists ``numba`` as unavailable with 
   stabilization increments) and the operator kernels on full lists built on them.
 * :mod:`.fused`: the WC-MPS step as five passes, each neighbour sum with the per-particle
   updates that follow it, rows computed by their own particle (no per-thread accumulators).
-* :mod:`.layout`: the particles sorted along a Z curve at each neighbour rebuild (locality),
-  and the ids that give the caller the problem's order back.
+* :mod:`.layout`: with ``sort=true``, the particles sorted along a Z curve at each neighbour
+  rebuild (locality), and the ids that give the caller the problem's order back.
 * :mod:`.steps`: the equation of state, the static number density, the health summary, the
   diffusion operator as per-entry coefficients.
 * :mod:`.mirror`: the ``mirror`` wall velocities (kernel-weighted linear fit at mirror points).

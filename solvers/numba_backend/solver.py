@@ -7,9 +7,12 @@ its own formulas (:mod:`.formulas`), so a plugin's weight, Laplacian or pressure
 
 * diffusion: L held as per-entry coefficients of a CSR list built once (particles are fixed);
 * flow (WC-MPS): five fused passes per step (:mod:`.fused`: each neighbour sum with the
-  per-particle updates that follow it, rows of a full list computed by their own particle), on
-  particles kept sorted along a space-filling curve (:mod:`.layout`; ``sort=false`` keeps the
-  problem's order).  ``state()`` and ``diagnostics()`` give the problem's order back.
+  per-particle updates that follow it, rows of a full list computed by their own particle);
+  with ``sort=true`` on particles kept sorted along a space-filling curve (:mod:`.layout`),
+  ``state()`` and ``diagnostics()`` giving the problem's order back.  The default keeps the
+  problem's order: on the quick tier's dam break the sorted runs' other summation order made
+  two runs of the model grid diverge that the reference and the unsorted backend complete
+  (docs/performance.md).
 
 Boundary conventions (as the reference): wall particles take part in pressure and in every
 operator; dummy particles complete the number density and carry the wall velocity into the
@@ -85,8 +88,9 @@ class NumbaSolver(SchemeSolver):
     options = (
         Option("threads", 0, "numba threads; 0: automatic (one below 8000 particles or in a "
                "worker process of a pool, else numba's thread count)", kind=int, minimum=0),
-        Option("sort", True, "flow: sort the particles along a space-filling curve at each "
-               "neighbour rebuild (memory locality); false: keep the problem's order", kind=bool),
+        Option("sort", False, "flow: sort the particles along a space-filling curve at each "
+               "neighbour rebuild (memory locality); false: keep the problem's order",
+               kind=bool),
     )
     parallel_min = 8_000
     """With ``threads=0``, problems with fewer particles run on one thread: a parallel region
@@ -95,7 +99,7 @@ class NumbaSolver(SchemeSolver):
     time slice for a descheduled thread.  Inside a worker process of a pool (a study run with
     ``--jobs`` > 1) every problem runs on one thread: the pool already uses the cores."""
 
-    def __init__(self, threads: int | None = 0, sort: bool = True) -> None:
+    def __init__(self, threads: int | None = 0, sort: bool = False) -> None:
         super().__init__()
         if threads is not None and (
             not isinstance(threads, int) or isinstance(threads, bool) or threads < 0
@@ -425,15 +429,15 @@ class NumbaSolver(SchemeSolver):
 
     # ------------------------------------------------------------------ the caller's view
     def state(self) -> Particles:
-        """The particles in the problem's order (a copy: the solver keeps its own, sorted along
-        a space-filling curve; :mod:`.layout`)."""
-        if not hasattr(self, "birth"):
+        """The particles in the problem's order (with ``sort``, a copy: the solver keeps its own,
+        sorted along a space-filling curve; :mod:`.layout`)."""
+        if not hasattr(self, "birth") or not self.sort:
             return self.p
         return self.p.subset(self.birth.external())
 
     def diagnostics(self) -> dict[str, Any]:
         out = super().diagnostics()
-        if hasattr(self, "birth"):
+        if hasattr(self, "birth") and self.sort:
             ext = self.birth.external()
             out["number_density"] = self.number_density[ext]
             out["free_surface"] = self.free_surface[ext]
