@@ -14,7 +14,9 @@ out="${1:-$(mktemp -d "${TMPDIR:-/tmp}/mpsbench-smoke.XXXXXX")}"
 baseline="${BASELINE:-validations/baselines/smoke}"
 
 status=0
-"$python" -m mpsbench validate all --tier smoke --jobs "${JOBS:-2}" --out "$out" || status=$?
+# The baseline holds the reference backend's metrics (validate's default is numba when installed).
+"$python" -m mpsbench validate all --tier smoke --solver reference --jobs "${JOBS:-2}" \
+    --out "$out" || status=$?
 if ((status == 2)); then
     exit 2  # usage error: nothing ran
 fi

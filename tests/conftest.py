@@ -26,6 +26,18 @@ def strict_floats() -> Iterator[None]:
         np.seterr(**old)
 
 
+@pytest.fixture(autouse=True)
+def reference_by_default(request: pytest.FixtureRequest,
+                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """``validate`` without ``--solver`` runs numba when it is installed; the tests written
+    against the reference's numbers and folder names keep the reference (in-process runs only).
+    A test marked ``numba_default`` sees the real default (tests/test_validate_all.py)."""
+    if request.node.get_closest_marker("numba_default") is None:
+        from mpsbench.commands import validate
+
+        monkeypatch.setattr(validate, "default_solver", lambda: ("reference", ""))
+
+
 @pytest.fixture
 def jittered_periodic_cloud() -> Callable[..., tuple[np.ndarray, Box]]:
     """Factory: a fully periodic n_side^2 lattice with seeded uniform jitter (fraction of l0)."""

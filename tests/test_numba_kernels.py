@@ -27,8 +27,7 @@ from mpsbench.physics.weights import get_weight
 
 numba = pytest.importorskip("numba")
 _backend = pytest.importorskip("mpsbench.solvers.numba_backend")
-cells, kernels, formulas, pairs = (_backend.cells, _backend.kernels, _backend.formulas,
-                                   _backend.pairs)
+cells, kernels, formulas = _backend.cells, _backend.kernels, _backend.formulas
 geometry, neighbour_list = _backend.geometry, _backend.neighbour_list
 ALL_ROWS = np.zeros(0, dtype=np.bool_)
 NO_ROWS = np.empty(0)
@@ -433,7 +432,7 @@ def ko_local(monkeypatch: pytest.MonkeyPatch):
 @pytest.mark.parametrize("rr", [2.1, 3.1])
 def test_a_plugin_laplacian_with_a_moment_runs_in_the_kernels(case, ko_local, wname, rr):
     """ko-local (c_ij = 2D W_ij / mean(S_i, S_j), S_i = sum_j W r^2): the row kernel, the
-    half-list kernel and the diffusion entries against the numpy evaluation of the same class."""
+    moments and the diffusion entries against the numpy evaluation of the same class."""
     _, pos, box, f, csr = case
     re, wf = rr * L0, get_weight(wname)
     n0, lam = ops.lattice_constants(wf, rr, L0)
@@ -444,20 +443,11 @@ def test_a_plugin_laplacian_with_a_moment_runs_in_the_kernels(case, ko_local, wn
     rows = np.empty(n)
     close(laplacian_kernel("ko-local", False, wname, rr, csr, pos, box, f["u"], rows), want)
     close(rows, pl.sum_sym(np.abs(model.coefficients(pl, wf, re, n0, lam))))
-    # the half-list kernels (moments summed over pairs too)
+    # the moments S_i the flow step computes first (kernels.moments)
     wt, lap = compiled_weight(wname), formulas.laplacian(model)
-    half = cells.build_csr(pos, max(RADII) * L0 + SKIN, box, half=True)
-    a = args(half, pos, box)
-    bounds = pairs.chunk_bounds(half.offsets)
-    acc_n = np.zeros((pairs.CHUNKS, n))
-    pairs.pair_sum_pairs(wt, lap.moment)(*a, re, bounds, acc_n)
     s = np.empty(n)
-    pairs.sum_chunks(acc_n, s)
+    kernels.moments(wt, lap)(*args(csr, pos, box), re, s)
     close(s, pl.sum_sym(wf.w(pl.r, re) * pl.r**2))
-    acc, acc_rows = np.zeros((pairs.CHUNKS, n, 2)), np.zeros((pairs.CHUNKS, n))
-    pairs.laplacian_pairs(wt, lap)(*a, f["u"], re, model.prefactor(n0, lam), s, bounds, acc,
-                                   acc_rows)
-    close(acc.sum(axis=0), want)
 
 
 def test_a_weight_defined_here_compiles_into_the_kernels():
@@ -527,3 +517,20 @@ def test_model_kernels_load_from_the_disk_cache_in_a_new_process(tmp_path):
     ]
     assert runs[0] == ["0", "1"], runs  # compiled and saved
     assert runs[1] == ["1", "0"], runs  # loaded: no compilation in the second process
+
+
+def test_compile_watch_counts_compilations_not_calls_of_compiled_code():
+    """What the solver reports as its JIT time (timings['jit_compile_s'], compile_times)."""
+    from mpsbench.solvers.numba_backend._jit import watch_compiles
+
+    @numba.njit
+    def plus_one(x):  # type: ignore[no-untyped-def]
+        return x + 1
+
+    with watch_compiles() as watch:
+        assert plus_one(1) == 2
+    assert watch.kernels == 1 and watch.seconds > 0.0
+    assert list(watch.each) == [plus_one.py_func.__qualname__]
+    with watch_compiles() as again:
+        assert plus_one(2) == 3
+    assert again.kernels == 0 and again.seconds == 0.0

@@ -214,3 +214,38 @@ def test_cases_with_fewer_longer_runs_are_submitted_first() -> None:
              for case, n in (("many", 3), ("few", 1), ("some", 2)) for i in range(n)]
     assert [t.run_id for t in heavy_first(tasks)] == ["few0", "some0", "some1", "many0",
                                                        "many1", "many2"]
+
+
+@pytest.mark.numba_default
+def test_the_default_solver_is_numba_when_it_loads(
+        toys: object, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    pytest.importorskip("numba")
+    out = tmp_path / "one"
+    assert cli.main(["validate", "toy-diffusion", "--tier", "smoke", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "solver: numba (the default when it is installed" in err
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["solvers"] == ["numba"]
+
+
+@pytest.mark.numba_default
+def test_without_numba_the_default_is_the_reference_and_says_why(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    from mpsbench.commands import validate as command
+    from mpsbench.registry import PluginLoadError
+    from mpsbench.run.protocol import SOLVERS
+
+    real = SOLVERS.get
+
+    def get(name: str) -> object:
+        if name == "numba":
+            raise PluginLoadError("solver 'numba' (built-in) could not be loaded: ImportError: "
+                                  "numba is not installed: pip install 'mpsbench[fast]'")
+        return real(name)
+
+    monkeypatch.setattr(SOLVERS, "get", get)
+    name, note = command.default_solver()
+    assert name == "reference"
+    assert note == ("solver: reference (numba is unavailable: solver 'numba' (built-in) could "
+                    "not be loaded: ImportError: numba is not installed: pip install "
+                    "'mpsbench[fast]')")

@@ -62,7 +62,8 @@ def register(sub: Any) -> None:
     p.add_argument("--list", action="store_true", help="list the registered cases and exit")
     p.add_argument("--solver", action="append", default=None, metavar="SPEC",
                    help="solver backend, NAME or NAME:key=value,... with its options (see "
-                   "'mpsbench solvers'), e.g. numba:threads=1 (repeatable; default: reference)")
+                   "'mpsbench solvers'), e.g. numba:threads=1 (repeatable; default: numba when "
+                   "it is installed, else reference)")
     p.add_argument("--tier", default="quick", type=_tier, metavar="TIER",
                    help="smoke (seconds, for CI), quick (default, minutes) or paper (full grid)")
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE[,VALUE...]",
@@ -224,6 +225,20 @@ def default_all_out(tier: str, root: Path = Path("reports")) -> Path:
     return path
 
 
+def default_solver() -> tuple[str, str]:
+    """The solver of a ``validate`` without ``--solver`` and the line that says so: numba (the
+    fast backend, results held against the reference by its tests) when it loads, else the
+    reference backend with the reason."""
+    from mpsbench.run.protocol import SOLVERS
+
+    try:
+        SOLVERS.get("numba")
+    except Exception as exc:  # noqa: BLE001 - unavailable for any reason: say which, go on
+        return "reference", f"solver: reference (numba is unavailable: {exc})"
+    return "numba", "solver: numba (the default when it is installed; --solver reference for " \
+        "the reference backend)"
+
+
 def cmd_validate(args: argparse.Namespace) -> int:
     from mpsbench.cases import CASES, case_order, get_case
     from mpsbench.results.records import canonical_solver
@@ -241,12 +256,21 @@ def cmd_validate(args: argparse.Namespace) -> int:
     if args.jobs is not None and args.jobs < 1:
         raise UsageError(f"--jobs = {args.jobs} is not allowed: an integer >= 1")
     # unknown or broken solver, unknown option or bad value: usage error before any run
-    solvers = list(dict.fromkeys(canonical_solver(s) for s in args.solver or ["reference"]))
+    args.solver_note = ""
+    if not args.solver:
+        default, args.solver_note = default_solver()
+        args.solver = [default]
+    solvers = list(dict.fromkeys(canonical_solver(s) for s in args.solver))
     if args.case == "all":
         if args.set:
             raise UsageError("--set applies to one case; run 'mpsbench validate CASE --set ...'")
         return validate_all(args, solvers)
     return validate_one(args, solvers)
+
+
+def _say_solver(args: argparse.Namespace) -> None:
+    if getattr(args, "solver_note", ""):
+        print(args.solver_note, file=sys.stderr)
 
 
 def _manifest(args: argparse.Namespace, solvers: list[str], jobs: int) -> dict[str, Any]:
@@ -285,6 +309,7 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
     manifest = _manifest(args, solvers, jobs)
     t0 = time.perf_counter()
     with folder_lock(out, lock_command(args)):
+        _say_solver(args)
         print(f"{case.name}: {len(tasks)} runs -> {out}", file=sys.stderr)
         executor = executor_for(args, jobs)
         progress = progress_for(args, tasks)
@@ -370,6 +395,7 @@ def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
     from mpsbench.results.sections import safe_render_case, verdict
     from mpsbench.results.sweep import run_tasks
 
+    _say_solver(args)
     print(f"validate all: {len(tasks)} runs of {len(cases)} cases x "
           f"{len(manifest['solvers'])} solver(s), tier {args.tier}, {jobs} job(s) -> {out}",
           file=sys.stderr)

@@ -23,19 +23,26 @@ layout (the reference: numpy over a pair list; numba: compiled kernels over cell
 ``_setup_flow(ph)``        build the neighbour data (the particles are in ``self.p``)
 ``_update_neighbours()``   make the neighbour data valid for the current positions
 ``_number_density()``      n_i at r_e (set-up only; the step uses ``_density_pressure``)
-``_viscous(mirror)``       lap(u) of the velocities (mirrored at walls when ``mirror``), kept
-                           for ``_predict``; return max over fluid rows of sum_j |c_ij|
-``_predict(dt, ph)``       u* = u + dt (nu lap(u) + g) on fluid; every particle moves by dt u*
-``_density_pressure(eos)`` n at r*, ``eos`` -> pressure, ``self.number_density``,
+``_row_sums()``            max over fluid rows of sum_j |c_ij| of the Laplacian (set-up: the
+                           first ``stable_dt``; later steps get it from ``_predict``)
+``_predict(dt, ph)``       steps 1-2: u* = u + dt (nu lap(u) + g) on fluid, lap(u) with the
+                           boundary velocities mirrored at walls when ``ph.wall_velocity`` is
+                           ``mirror``; every particle moves by dt u*.  Return the max over
+                           fluid rows of sum_j |c_ij| of that Laplacian (None when nu = 0)
+``_density_pressure(eos)`` step 3: n at r*, ``eos`` -> pressure, ``self.number_density``,
                            ``self.free_surface`` (and the inner flags of the stabilization)
-``_pressure_increment(f)`` du = f grad(p) on fluid (f = -dt / rho0), 0 elsewhere
-``_collision(d, e)``       du += the collision increments at u + du
-``_add_increment()``       u += du
-``_stabilize(f, walls)``   the stabilization increments (prefactor f) at r*, for ``_move``
-``_move(dt, stabilized)``  r += dt du; with the stabilization u += its increments
+``_correct(f, collision)`` steps 4-5: du = f grad(p) on fluid (f = -dt / rho0), 0 elsewhere;
+                           with ``collision`` = (distance, restitution): du += the collision
+                           increments at u + du; then u += du
+``_move(dt, stab)``        step 6: with ``stab`` = (prefactor, with_walls) the stabilization
+                           increments at the r* geometry; r += dt du; u += the increments
 ``_particles_changed(k)``  the particle set changed (``keep`` of the open boundaries)
 ``rebuild_neighbours()``   rebuild the neighbour data now (timed by ``mpsbench bench``)
 =========================  =====================================================================
+
+Steps 1-2, 4-5 and 6 are one hook each so that a backend can fuse a neighbour sum with the
+per-particle updates that follow it (the numba backend's kernels do); the order inside a hook is
+the one given here, which the reference backend follows line by line.
 
 ``_max_speed()`` (max |u| over all particles) and ``health()`` (the runner's per-step check) have
 numpy defaults over ``self.p`` that a backend may replace with compiled or on-device ones.
@@ -176,7 +183,7 @@ class SchemeSolver(SolverBase):
         self._update_neighbours()
         self.number_density = self._number_density()
         # the row sums for the first stable_dt()
-        self.rho_lap = 2.0 * self._viscous(mirror=False)
+        self.rho_lap = 2.0 * self._row_sums()
 
     # ------------------------------------------------------------------ the step
     def _advance(self, dt: float) -> None:
@@ -186,24 +193,22 @@ class SchemeSolver(SolverBase):
             return
         # 1-2: predictor (viscosity with the boundary velocities of step 1, gravity), move
         self._update_neighbours()
-        if ph.nu > 0:  # (without viscosity the row sums are not needed either)
-            self.rho_lap = 2.0 * self._viscous(mirror=ph.wall_velocity == "mirror")
-        self._predict(dt, ph)
+        rows = self._predict(dt, ph)
+        if rows is not None:  # (without viscosity the row sums are not needed either)
+            self.rho_lap = 2.0 * rows
         self._wrap()
         # 3: number density at r*, equation of state, free surface
         self._update_neighbours()
         self._density_pressure(self.eos)
-        # 4: corrector, without dummy particles
-        self._pressure_increment(-(dt / ph.rho0))
-        # 5: collision on u* + u'
-        if ph.collision:
-            self._collision(ph.collision_distance * self.l0, ph.restitution)
-        self._add_increment()
-        # 6: stabilization at the r* geometry, velocities only
+        # 4-5: corrector without dummy particles, collision on u* + u', u += du
+        collision = (ph.collision_distance * self.l0, ph.restitution) if ph.collision else None
+        self._correct(-(dt / ph.rho0), collision)
+        # 6: stabilization at the r* geometry (velocities only), move
+        stab = None
         if ph.stabilization:
-            self._stabilize(STABILIZATION.prefactor(ph.alpha_s, self.l0, self.n0),
-                            ph.stabilization_walls)
-        self._move(dt, ph.stabilization)
+            stab = (STABILIZATION.prefactor(ph.alpha_s, self.l0, self.n0),
+                    ph.stabilization_walls)
+        self._move(dt, stab)
         # 7: wrap, open boundaries
         self._wrap()
         self._open_boundaries(dt)
@@ -272,28 +277,19 @@ class SchemeSolver(SolverBase):
     def _number_density(self) -> FloatArray:
         raise NotImplementedError
 
-    def _viscous(self, mirror: bool) -> float:
+    def _row_sums(self) -> float:
         raise NotImplementedError
 
-    def _predict(self, dt: float, ph: FlowPhysics) -> None:
+    def _predict(self, dt: float, ph: FlowPhysics) -> float | None:
         raise NotImplementedError
 
     def _density_pressure(self, eos: EquationOfState) -> None:
         raise NotImplementedError
 
-    def _pressure_increment(self, factor: float) -> None:
+    def _correct(self, factor: float, collision: tuple[float, float] | None) -> None:
         raise NotImplementedError
 
-    def _collision(self, distance: float, restitution: float) -> None:
-        raise NotImplementedError
-
-    def _add_increment(self) -> None:
-        raise NotImplementedError
-
-    def _stabilize(self, factor: float, with_walls: bool) -> None:
-        raise NotImplementedError
-
-    def _move(self, dt: float, stabilized: bool) -> None:
+    def _move(self, dt: float, stabilization: tuple[float, bool] | None) -> None:
         raise NotImplementedError
 
     def _particles_changed(self, keep: NDArray[np.bool_]) -> None:

@@ -1,4 +1,4 @@
-"""Solver specs: a backend's name with option values, ``numba:threads=1,pairwise=false``.
+"""Solver specs: a backend's name with option values, ``numba:threads=1,sort=true``.
 
 A backend declares its options (``SolverBase.options``: :class:`mpsbench.params.Option`, as a
 case declares its parameters).  :func:`solver_spec` parses and validates a spec from the command
@@ -19,7 +19,7 @@ from mpsbench.run.protocol import SOLVERS, Solver, _validate_solver
 
 @dataclass(frozen=True)
 class SolverSpec:
-    """A solver name with option values: ``numba``, ``numba:threads=1,pairwise=false``.
+    """A solver name with option values: ``numba``, ``numba:threads=1,sort=true``.
 
     ``options`` holds the values that differ from the backend's defaults, in the order the
     backend declares them, so equal settings give equal specs (and run ids); :attr:`text` is the

@@ -44,9 +44,11 @@ def jit(fn: Any) -> Any:
     ``arcp`` lets a division by a loop invariant become a multiplication by its reciprocal,
     computed once outside the neighbour loop (``r / re`` in every weight: the hand-written
     kernels did exactly that with a precomputed 1/re); it changes results by an ulp at most.
+    ``error_model="numpy"``: no zero-division check (a branch that keeps a loop scalar); a
+    coincident pair's ``re / r`` is inf and the closed support selects 0.0 for it.
     """
     if fn not in _jitted:
-        _jitted[fn] = njit(fastmath={"arcp"})(fn)
+        _jitted[fn] = njit(fastmath={"arcp"}, error_model="numpy")(fn)
     return _jitted[fn]
 
 

@@ -56,6 +56,14 @@ def min_image(d, period, half):
     return d
 
 
+@njit(inline="always")
+def pos_sep(pos, j, xi, yi, px, py, hx, hy):
+    """(dx, dy, r^2) from (xi, yi) to particle j of an (n, 2) ``pos``, minimum image."""
+    dx = min_image(pos[j, 0] - xi, px, hx)
+    dy = min_image(pos[j, 1] - yi, py, hy)
+    return dx, dy, dx * dx + dy * dy
+
+
 @compiled
 def csr_geometry(pos, offsets, nbr, period, dx, r):
     """Fill ``dx[k] = r_j - r_i`` (minimum image) and ``r[k] = |dx[k]|`` for every CSR entry."""
@@ -114,4 +122,5 @@ __all__ = [
     "max_displacement",
     "min_image",
     "pair_geometry",
+    "pos_sep",
 ]

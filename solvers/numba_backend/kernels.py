@@ -1,36 +1,42 @@
-"""Row kernels over a CSR neighbour list (both directions of every pair), one factory each.
+"""Row functions (one particle's neighbour sum of a model) and the operator kernels built on them.
 
-Every kernel loops over particles in parallel (``prange``); particle ``i`` only reads its own
-row ``nbr[offsets[i]:offsets[i + 1]]`` and writes ``out[i]``, so there are no write conflicts
-and the result does not depend on the number of threads.  Separations ``dx = r_j - r_i``
-(minimum image through ``period``, see :mod:`.cells`) and ``r = |dx|`` are recomputed from the
-positions in each kernel; weights are zero beyond the kernel's own ``re``, so one list built at
-``r_max + skin`` serves every radius.
+A *row function* computes one particle's sum over its row of a CSR neighbour list (both
+directions of every pair, :mod:`.cells`): ``sum_j term(r_ij, ...)`` for the number density,
+a Laplacian's pair coefficients, p_min, a pressure gradient, the collision and the
+stabilization increments.  Each is made once per distinct models by a factory
+(:func:`row_function`) that closes over the models' compiled formulas (:mod:`.formulas`), so
+every registered model, a plugin's too, runs here through its own formulas; nothing in a row
+names a model.  The same row functions serve two kinds of kernels:
 
-A kernel is made by a factory (:func:`._jit.factory`) from the compiled models it needs
-(:mod:`.formulas`: a weight, a Laplacian, a pressure gradient), e.g.
-``number_density(models.weight)(offsets, nbr, pos, period, re, out)``; the models' formulas are
-those of :mod:`mpsbench.physics` (docs/method.md sections 2-5, D_s = 2), so the kernels agree with
-the numpy operators to rounding (per-particle summation order differs).  Factories here:
-:func:`pair_sum` (sum_j of a pair formula: the number density, a Laplacian's moment),
-:func:`number_density`, :func:`gradient`, :func:`divergence`, :func:`neighbour_min`,
-:func:`pressure_gradient`, :func:`laplacian_field`, :func:`stabilization`; :func:`collision`
-needs no model.
+* the step's fused kernels (:mod:`.fused`): positions and velocities as (2, n) arrays whose rows
+  ``x = X[0]``, ``y = X[1]`` are contiguous, each row's sum followed by its per-particle update;
+* the operator kernels below, ``number_density(wt)(offsets, nbr, pos, period, re, out)`` and
+  the like, on (n, 2) arrays: the compiled operators of :mod:`mpsbench.physics.operators`, used
+  by the diffusion set-up and held against the numpy operators by tests/test_numba_kernels.py.
 
-Conventions: ``offsets, nbr, pos, period`` come first (:mod:`.cells`); ``out`` arrays are passed
-in (no allocation in the hot path) and also returned; ``mask`` arguments are boolean
-per-particle arrays: a particle whose mask is false neither receives nor contributes (the
-reference backend leaves dummy particles out of the pressure gradient this way); ``kind`` is
-the int8 :class:`mpsbench.physics.particles.Kind` array (0 = fluid).  Units follow the inputs.
+A row function is inlined into the kernel that calls it (numba IR inlining), so it is compiled
+with the kernel's floating-point flags (:mod:`._jit`).  ``periodic`` (a factory argument, so a
+constant of the compiled code): separations take the minimum image (:mod:`.geometry`, the same
+bits as ``Box.minimum_image``); without it the plain difference, which is what a box without
+periodic axes gives, and the inner loops vectorise (the minimum image's branches would keep
+them scalar).
+
+Conventions: ``offsets, nbr`` a CSR list, ``x, y`` positions, ``i`` the row; ``period, hx, hy``
+the box period and half widths (:func:`.geometry.half_width`); weights are zero beyond the
+kernel's own ``re`` (``re_s = re * SUPPORT``: the closed support of :func:`.formulas.inside`),
+so one list built at ``r_max + skin`` serves every radius.  ``mask`` arguments are boolean
+per-particle arrays: a particle whose mask is false neither receives nor contributes; ``kind``
+is the int8 :class:`mpsbench.physics.particles.Kind` array (0 = fluid).
 
 Inner loops are branch-free where it pays: every term is computed and then selected with
 :func:`.formulas.inside` (0 < r <= re (1 + SUPPORT_RTOL), the reference's own test), which avoids
-mispredicted branches on the ragged edge of the support (measured ~20% faster than skipping).  A
-selected 0.0 adds nothing, so results equal the skipping form bit for bit.
+mispredicted branches on the ragged edge of the support and lets the loop vectorise.  A selected
+0.0 adds nothing, so results equal the skipping form.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -44,124 +50,42 @@ from .geometry import half_width, min_image
 NO_MOMENT = np.zeros(0)
 """The moment array a Laplacian without a moment is given (never read)."""
 
+_rows: dict[tuple[Any, ...], Any] = {}
+
+
+def row_function(build: Callable[..., Any]) -> Callable[..., Any]:
+    """A memoised factory of an inlined row function: ``build(*models, periodic)`` returns a
+    Python function, compiled once per arguments with ``njit(inline="always")``."""
+
+    def get(*args: Any) -> Any:
+        key = (build.__name__, *args)
+        if key not in _rows:
+            _rows[key] = njit(inline="always")(build(*args))
+        return _rows[key]
+
+    get.__name__ = build.__name__
+    get.__qualname__ = build.__qualname__
+    get.__doc__ = build.__doc__
+    return get
+
+
+def separation(periodic: bool) -> Any:
+    """``(x, y, j, xi, yi, px, py, hx, hy) -> (dx, dy, r^2)`` from (xi, yi) to particle j."""
+    return _minimum_image_sep if periodic else _plain_sep
+
 
 @njit(inline="always")
-def sep(pos, j, xi, yi, px, py, hx, hy):
-    """(dx, dy, r^2) from particle (xi, yi) to particle j, minimum image."""
-    dx = min_image(pos[j, 0] - xi, px, hx)
-    dy = min_image(pos[j, 1] - yi, py, hy)
+def _minimum_image_sep(x, y, j, xi, yi, px, py, hx, hy):
+    dx = min_image(x[j] - xi, px, hx)
+    dy = min_image(y[j] - yi, py, hy)
     return dx, dy, dx * dx + dy * dy
 
 
-# --------------------------------------------------------------------------- sums of a pair term
-
-
-@factory
-def pair_sum(wt: fm.Weight, formula: Any) -> Any:
-    """out_i = sum_j formula(r_ij, W, W', W'') over the support of ``re``."""
-    term = fm.pair_of(wt, formula)
-
-    def pair_sum(offsets, nbr, pos, period, re, out):
-        n = offsets.shape[0] - 1
-        px = period[0]
-        py = period[1]
-        hx = half_width(px)
-        hy = half_width(py)
-        re_s = re * SUPPORT
-        for i in prange(n):
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            s = 0.0
-            for k in range(offsets[i], offsets[i + 1]):
-                _, _, r2 = sep(pos, nbr[k], xi, yi, px, py, hx, hy)
-                r = np.sqrt(r2)
-                v = term(r, re)
-                s += v if inside(r, r2, re_s) else 0.0
-            out[i] = s
-        return out
-
-    return pair_sum
-
-
-def number_density(wt: fm.Weight) -> Any:
-    """n_i = sum_j W_ij: ``(offsets, nbr, pos, period, re, out)``."""
-    return pair_sum(wt, fm.W_ONLY)
-
-
-def moments(wt: fm.Weight, lap: fm.Laplacian) -> Any:
-    """S_i = sum_j moment(r_ij, ...) of a Laplacian with a moment (the kernel of
-    :func:`pair_sum`)."""
-    return pair_sum(wt, lap.moment)
-
-
-# --------------------------------------------------------------------------- gradients
-
-
-@factory
-def gradient(wt: fm.Weight) -> Any:
-    """Original gradient (Eq. 5): (D/n0) sum_j (phi_j - phi_i) r_ij W_ij / r_ij^2; out (n, 2).
-    Arguments ``(offsets, nbr, pos, period, phi, re, factor, out)``, factor = D / n0."""
-    w_of = fm.number_density_pair(wt)
-
-    def gradient(offsets, nbr, pos, period, phi, re, factor, out):
-        n = offsets.shape[0] - 1
-        px = period[0]
-        py = period[1]
-        hx = half_width(px)
-        hy = half_width(py)
-        re_s = re * SUPPORT
-        for i in prange(n):
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            phii = phi[i]
-            gx = 0.0
-            gy = 0.0
-            for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                dx, dy, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
-                r = np.sqrt(r2)
-                q = RADIAL(r, w_of(r, re))
-                q = q if inside(r, r2, re_s) else 0.0
-                c = (phi[j] - phii) * q
-                gx += c * dx
-                gy += c * dy
-            out[i, 0] = factor * gx
-            out[i, 1] = factor * gy
-        return out
-
-    return gradient
-
-
-@factory
-def divergence(wt: fm.Weight) -> Any:
-    """(D/n0) sum_j (u_j - u_i) . r_ij W_ij / r_ij^2 of a (n, 2) field ``u``:
-    ``(offsets, nbr, pos, period, u, re, factor, out)``, factor = D / n0."""
-    w_of = fm.number_density_pair(wt)
-
-    def divergence(offsets, nbr, pos, period, u, re, factor, out):
-        n = offsets.shape[0] - 1
-        px = period[0]
-        py = period[1]
-        hx = half_width(px)
-        hy = half_width(py)
-        re_s = re * SUPPORT
-        for i in prange(n):
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            ui = u[i, 0]
-            vi = u[i, 1]
-            s = 0.0
-            for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                dx, dy, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
-                r = np.sqrt(r2)
-                q = RADIAL(r, w_of(r, re))
-                q = q if inside(r, r2, re_s) else 0.0
-                s += ((u[j, 0] - ui) * dx + (u[j, 1] - vi) * dy) * q
-            out[i] = factor * s
-        return out
-
-    return divergence
+@njit(inline="always")
+def _plain_sep(x, y, j, xi, yi, px, py, hx, hy):
+    dx = x[j] - xi
+    dy = y[j] - yi
+    return dx, dy, dx * dx + dy * dy
 
 
 def positive_weight(wt: fm.Weight) -> Any:
@@ -181,32 +105,380 @@ def positive_weight(wt: fm.Weight) -> Any:
     return positive
 
 
-@factory
-def neighbour_min(wt: fm.Weight) -> Any:
-    """p_min,i = min(p_i, p_j over neighbours with W_ij > 0 and mask_j); masked-out i: p_i.
-    Arguments ``(offsets, nbr, pos, period, p, mask, re, out)``."""
-    positive = positive_weight(wt)
+# --------------------------------------------------------------------------- row functions
 
-    def neighbour_min(offsets, nbr, pos, period, p, mask, re, out):
-        n = offsets.shape[0] - 1
+
+@row_function
+def pair_sum_row(wt: fm.Weight, formula: Any, periodic: bool) -> Any:
+    """sum_j formula(r_ij, W, W', W''): ``(offsets, nbr, x, y, i, px, py, hx, hy, re) -> s``."""
+    term = fm.pair_of(wt, formula)
+    sep = separation(periodic)
+
+    def pair_sum_row(offsets, nbr, x, y, i, px, py, hx, hy, re):
+        re_s = re * SUPPORT
+        xi = x[i]
+        yi = y[i]
+        s = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            _, _, r2 = sep(x, y, nbr[k], xi, yi, px, py, hx, hy)
+            r = np.sqrt(r2)
+            v = term(r, re)
+            s += v if inside(r, r2, re_s) else 0.0
+        return s
+
+    return pair_sum_row
+
+
+def density_row(wt: fm.Weight, periodic: bool) -> Any:
+    """n_i = sum_j W_ij (the row of :func:`pair_sum_row` for W)."""
+    return pair_sum_row(wt, fm.W_ONLY, periodic)
+
+
+@row_function
+def laplacian_row(wt: fm.Weight, lap: fm.Laplacian, periodic: bool) -> Any:
+    """A Laplacian of a 2-vector field (u, v) at particle i and its row sum of |c_ij|:
+    ``(offsets, nbr, x, y, u, v, i, px, py, hx, hy, re, pref, s, gfactor, gcorr) -> (lap_u,
+    lap_v, sum |c|)``.
+
+    lap(phi)_i = sum_j c_ij (phi_j - phi_i) [- B_i . grad(phi)_i], c_ij = ``pref`` * the model's
+    pair formula (``pref`` = its prefactor(n0, lam); ``s`` the moments S of a model with a
+    moment, else :data:`NO_MOMENT`).  With ``gcorr`` (the xu-jin gradient correction) B_i =
+    sum_j c_ij r_ij and grad is the original gradient ``gfactor`` sum phi_ij r_ij W / r^2 at the
+    same ``re`` (gfactor = D / n0).
+    """
+    coef = fm.laplacian_pair(wt, lap)
+    w_of = fm.number_density_pair(wt)
+    sep = separation(periodic)
+
+    def laplacian_row(offsets, nbr, x, y, u, v, i, px, py, hx, hy, re, pref, s, gfactor,
+                      gcorr):
+        re_s = re * SUPPORT
+        xi = x[i]
+        yi = y[i]
+        ui = u[i]
+        vi = v[i]
+        s0 = 0.0
+        s1 = 0.0
+        sa = 0.0
+        if not gcorr:
+            for k in range(offsets[i], offsets[i + 1]):
+                j = nbr[k]
+                _, _, r2 = sep(x, y, j, xi, yi, px, py, hx, hy)
+                r = np.sqrt(r2)
+                c = pref * coef(r, re, s, i, j)
+                c = c if inside(r, r2, re_s) else 0.0
+                s0 += c * (u[j] - ui)
+                s1 += c * (v[j] - vi)
+                sa += abs(c)
+            return s0, s1, sa
+        bx = 0.0
+        by = 0.0
+        g0x = 0.0
+        g0y = 0.0
+        g1x = 0.0
+        g1y = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            dx, dy, r2 = sep(x, y, j, xi, yi, px, py, hx, hy)
+            r = np.sqrt(r2)
+            ins = inside(r, r2, re_s)
+            c = pref * coef(r, re, s, i, j)
+            c = c if ins else 0.0
+            d0 = u[j] - ui
+            d1 = v[j] - vi
+            s0 += c * d0
+            s1 += c * d1
+            sa += abs(c)
+            bx += c * dx
+            by += c * dy
+            q = RADIAL(r, w_of(r, re))
+            q = q if ins else 0.0
+            g0x += d0 * q * dx
+            g0y += d0 * q * dy
+            g1x += d1 * q * dx
+            g1y += d1 * q * dy
+        s0 -= bx * (gfactor * g0x) + by * (gfactor * g0y)
+        s1 -= bx * (gfactor * g1x) + by * (gfactor * g1y)
+        return s0, s1, sa
+
+    return laplacian_row
+
+
+@row_function
+def pmin_row(wt: fm.Weight, periodic: bool) -> Any:
+    """p_min,i = min(p_i, p_j over neighbours with W_ij > 0 and mask_j) (call it for masked-in
+    rows): ``(offsets, nbr, x, y, p, mask, i, px, py, hx, hy, re) -> p_min``."""
+    positive = positive_weight(wt)
+    sep = separation(periodic)
+
+    def pmin_row(offsets, nbr, x, y, p, mask, i, px, py, hx, hy, re):
+        m = p[i]
+        xi = x[i]
+        yi = y[i]
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            pj = p[j]
+            if not mask[j] or pj >= m:  # most neighbours stop here: no geometry needed
+                continue
+            _, _, r2 = sep(x, y, j, xi, yi, px, py, hx, hy)
+            if positive(r2, re):
+                m = pj
+        return m
+
+    return pmin_row
+
+
+@row_function
+def gradient_row(wt: fm.Weight, grad: fm.Gradient, periodic: bool) -> Any:
+    """A pressure-gradient model's sum_j P_ij r_ij radial(r_ij, W_ij) over neighbours with
+    ``mask`` set, without the prefactor: ``(offsets, nbr, x, y, p, pmin, mask, i, pmi, px, py,
+    hx, hy, re) -> (gx, gy)``; ``pmi`` is p_min of row i (``pmin`` of the neighbours is read
+    only when the model's pair formula does)."""
+    w_of = fm.number_density_pair(wt)
+    pair = grad.pair
+    radial = grad.radial
+    sep = separation(periodic)
+
+    def gradient_row(offsets, nbr, x, y, p, pmin, mask, i, pmi, px, py, hx, hy, re):
+        re_s = re * SUPPORT
+        xi = x[i]
+        yi = y[i]
+        pi = p[i]
+        gx = 0.0
+        gy = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            dx, dy, r2 = sep(x, y, j, xi, yi, px, py, hx, hy)
+            r = np.sqrt(r2)
+            q = radial(r, w_of(r, re))
+            q = q if inside(r, r2, re_s) & mask[j] else 0.0
+            c = pair(pi, p[j], pmi, pmin[j]) * q
+            gx += c * dx
+            gy += c * dy
+        return gx, gy
+
+    return gradient_row
+
+
+@row_function
+def collision_row(periodic: bool) -> Any:
+    """Lee et al. (2011) increments of a fluid particle i: ``(offsets, nbr, x, y, u, v, kind, i,
+    px, py, hx, hy, distance, restitution, wall_share) -> (ax, ay)``.
+
+    For a neighbour j closer than ``distance`` (alpha_c l0) that approaches i, (u_i - u_j) .
+    r_ij > 0 with r_ij = r_j - r_i: du_i = -(1 + e) s_ij [(u_i - u_j) . r_ij / r_ij^2] r_ij,
+    s_ij = m_j/(m_i + m_j) = 1/2 for a fluid j and ``wall_share`` for a boundary j (1.0: an
+    infinitely heavy wall, the reference backend's choice).  All pairs use the input
+    velocities (Jacobi update, order independent).
+    """
+    sep = separation(periodic)
+
+    def collision_row(offsets, nbr, x, y, u, v, kind, i, px, py, hx, hy, distance,
+                      restitution, wall_share):
+        reject = distance * distance * (1.0 + 1e-9)  # beyond this r2, r < distance is impossible
+        xi = x[i]
+        yi = y[i]
+        ui = u[i]
+        vi = v[i]
+        ax = 0.0
+        ay = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            dx, dy, r2 = sep(x, y, j, xi, yi, px, py, hx, hy)
+            if r2 > reject or r2 == 0.0 or not np.sqrt(r2) < distance:
+                continue  # nearly every pair: the branch predicts well
+            approach = (ui - u[j]) * dx + (vi - v[j]) * dy
+            if approach > 0.0:
+                share = 0.5 if kind[j] == FLUID else wall_share
+                c = share * ((1.0 + restitution) * approach / r2)
+                ax -= c * dx
+                ay -= c * dy
+        return ax, ay
+
+    return collision_row
+
+
+@row_function
+def stabilization_row(wt: fm.Weight, periodic: bool) -> Any:
+    """sum_j pair_ij (u_j - u_i) of the stabilization (its pair weight, W') at particle i:
+    ``(offsets, nbr, x, y, u, v, kind, i, with_walls, px, py, hx, hy, re) -> (s0, s1)``;
+    without ``with_walls`` only fluid neighbours count."""
+    term = fm.stabilization_pair(wt)
+    sep = separation(periodic)
+
+    def stabilization_row(offsets, nbr, x, y, u, v, kind, i, with_walls, px, py, hx, hy, re):
+        re_s = re * SUPPORT
+        xi = x[i]
+        yi = y[i]
+        ui = u[i]
+        vi = v[i]
+        s0 = 0.0
+        s1 = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            _, _, r2 = sep(x, y, j, xi, yi, px, py, hx, hy)
+            r = np.sqrt(r2)
+            dw = term(r, re)
+            use = inside(r, r2, re_s) & (with_walls | (kind[j] == FLUID))
+            dw = dw if use else 0.0
+            s0 += dw * (u[j] - ui)
+            s1 += dw * (v[j] - vi)
+        return s0, s1
+
+    return stabilization_row
+
+
+@row_function
+def original_gradient_row(wt: fm.Weight, periodic: bool) -> Any:
+    """sum_j (phi_j - phi_i) r_ij W_ij / r_ij^2 (Eq. 5 without D/n0) of a scalar:
+    ``(offsets, nbr, x, y, phi, i, px, py, hx, hy, re) -> (gx, gy)``."""
+    w_of = fm.number_density_pair(wt)
+    sep = separation(periodic)
+
+    def original_gradient_row(offsets, nbr, x, y, phi, i, px, py, hx, hy, re):
+        re_s = re * SUPPORT
+        xi = x[i]
+        yi = y[i]
+        phii = phi[i]
+        gx = 0.0
+        gy = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            dx, dy, r2 = sep(x, y, j, xi, yi, px, py, hx, hy)
+            r = np.sqrt(r2)
+            q = RADIAL(r, w_of(r, re))
+            q = q if inside(r, r2, re_s) else 0.0
+            c = (phi[j] - phii) * q
+            gx += c * dx
+            gy += c * dy
+        return gx, gy
+
+    return original_gradient_row
+
+
+@row_function
+def divergence_row(wt: fm.Weight, periodic: bool) -> Any:
+    """sum_j (u_j - u_i) . r_ij W_ij / r_ij^2 (without D/n0): ``(offsets, nbr, x, y, u, v, i,
+    px, py, hx, hy, re) -> s``."""
+    w_of = fm.number_density_pair(wt)
+    sep = separation(periodic)
+
+    def divergence_row(offsets, nbr, x, y, u, v, i, px, py, hx, hy, re):
+        re_s = re * SUPPORT
+        xi = x[i]
+        yi = y[i]
+        ui = u[i]
+        vi = v[i]
+        s = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            dx, dy, r2 = sep(x, y, j, xi, yi, px, py, hx, hy)
+            r = np.sqrt(r2)
+            q = RADIAL(r, w_of(r, re))
+            q = q if inside(r, r2, re_s) else 0.0
+            s += ((u[j] - ui) * dx + (v[j] - vi) * dy) * q
+        return s
+
+    return divergence_row
+
+
+# --------------------------------------------------------------------------- operator kernels
+#
+# ``(offsets, nbr, pos, period, ...)`` with pos (n, 2); ``out`` arrays are passed in (no
+# allocation in the hot path) and also returned.  Every particle's row in parallel (``prange``):
+# row i only writes out[i], so the result does not depend on the number of threads.
+
+
+@factory
+def pair_sum(wt: fm.Weight, formula: Any) -> Any:
+    """out_i = sum_j formula(r_ij, W, W', W'') over the support of ``re``:
+    ``(offsets, nbr, pos, period, re, out)``."""
+    row = pair_sum_row(wt, formula, True)
+
+    def pair_sum(offsets, nbr, pos, period, re, out):
+        x = pos[:, 0]
+        y = pos[:, 1]
         px = period[0]
         py = period[1]
         hx = half_width(px)
         hy = half_width(py)
-        for i in prange(n):
-            m = p[i]
-            if mask[i]:
-                xi = pos[i, 0]
-                yi = pos[i, 1]
-                for k in range(offsets[i], offsets[i + 1]):
-                    j = nbr[k]
-                    pj = p[j]
-                    if not mask[j] or pj >= m:  # most neighbours stop here: no geometry needed
-                        continue
-                    _, _, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
-                    if positive(r2, re):
-                        m = pj
-            out[i] = m
+        for i in prange(offsets.shape[0] - 1):
+            out[i] = row(offsets, nbr, x, y, i, px, py, hx, hy, re)
+        return out
+
+    return pair_sum
+
+
+def number_density(wt: fm.Weight) -> Any:
+    """n_i = sum_j W_ij: ``(offsets, nbr, pos, period, re, out)``."""
+    return pair_sum(wt, fm.W_ONLY)
+
+
+def moments(wt: fm.Weight, lap: fm.Laplacian) -> Any:
+    """S_i = sum_j moment(r_ij, ...) of a Laplacian with a moment (the kernel of
+    :func:`pair_sum`)."""
+    return pair_sum(wt, lap.moment)
+
+
+@factory
+def gradient(wt: fm.Weight) -> Any:
+    """Original gradient (Eq. 5): (D/n0) sum_j (phi_j - phi_i) r_ij W_ij / r_ij^2; out (n, 2).
+    Arguments ``(offsets, nbr, pos, period, phi, re, factor, out)``, factor = D / n0."""
+    row = original_gradient_row(wt, True)
+
+    def gradient(offsets, nbr, pos, period, phi, re, factor, out):
+        x = pos[:, 0]
+        y = pos[:, 1]
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        for i in prange(offsets.shape[0] - 1):
+            gx, gy = row(offsets, nbr, x, y, phi, i, px, py, hx, hy, re)
+            out[i, 0] = factor * gx
+            out[i, 1] = factor * gy
+        return out
+
+    return gradient
+
+
+@factory
+def divergence(wt: fm.Weight) -> Any:
+    """(D/n0) sum_j (u_j - u_i) . r_ij W_ij / r_ij^2 of a (n, 2) field ``u``:
+    ``(offsets, nbr, pos, period, u, re, factor, out)``, factor = D / n0."""
+    row = divergence_row(wt, True)
+
+    def divergence(offsets, nbr, pos, period, u, re, factor, out):
+        x = pos[:, 0]
+        y = pos[:, 1]
+        ux = u[:, 0]
+        uy = u[:, 1]
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        for i in prange(offsets.shape[0] - 1):
+            out[i] = factor * row(offsets, nbr, x, y, ux, uy, i, px, py, hx, hy, re)
+        return out
+
+    return divergence
+
+
+@factory
+def neighbour_min(wt: fm.Weight) -> Any:
+    """p_min,i = min(p_i, p_j over neighbours with W_ij > 0 and mask_j); masked-out i: p_i.
+    Arguments ``(offsets, nbr, pos, period, p, mask, re, out)``."""
+    row = pmin_row(wt, True)
+
+    def neighbour_min(offsets, nbr, pos, period, p, mask, re, out):
+        x = pos[:, 0]
+        y = pos[:, 1]
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        for i in prange(offsets.shape[0] - 1):
+            out[i] = row(offsets, nbr, x, y, p, mask, i, px, py, hx, hy, re) if mask[i] else p[i]
         return out
 
     return neighbour_min
@@ -220,42 +492,23 @@ def pressure_gradient(wt: fm.Weight, grad: fm.Gradient) -> Any:
     Arguments ``(offsets, nbr, pos, period, p, pmin, mask, re, factor, out, rows)``: ``pmin``
     from :func:`neighbour_min` (same mask, weight and re) when the model uses it (else any (n,)
     array), ``factor`` = the model's prefactor(n0); masked-out rows get 0.  ``rows``: a boolean
-    array of the rows wanted (the others get 0; a solver needs fluid rows only), or an empty one
-    for all.
+    array of the rows wanted (the others get 0), or an empty one for all.
     """
-    w_of = fm.number_density_pair(wt)
-    pair = grad.pair
-    radial = grad.radial
+    row = gradient_row(wt, grad, True)
 
-    def pressure_gradient(
-        offsets, nbr, pos, period, p, pmin, mask, re, factor, out, rows
-    ):
-        n = offsets.shape[0] - 1
+    def pressure_gradient(offsets, nbr, pos, period, p, pmin, mask, re, factor, out, rows):
+        x = pos[:, 0]
+        y = pos[:, 1]
         px = period[0]
         py = period[1]
         hx = half_width(px)
         hy = half_width(py)
-        re_s = re * SUPPORT
         some = rows.shape[0] > 0
-        for i in prange(n):
+        for i in prange(offsets.shape[0] - 1):
             gx = 0.0
             gy = 0.0
             if mask[i] and (not some or rows[i]):
-                xi = pos[i, 0]
-                yi = pos[i, 1]
-                pi = p[i]
-                pmi = pmin[i]
-                for k in range(offsets[i], offsets[i + 1]):
-                    j = nbr[k]
-                    if not mask[j]:
-                        continue
-                    dx, dy, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
-                    r = np.sqrt(r2)
-                    q = radial(r, w_of(r, re))
-                    q = q if inside(r, r2, re_s) else 0.0
-                    c = pair(pi, p[j], pmi, pmin[j]) * q
-                    gx += c * dx
-                    gy += c * dy
+                gx, gy = row(offsets, nbr, x, y, p, pmin, mask, i, pmin[i], px, py, hx, hy, re)
             out[i, 0] = factor * gx
             out[i, 1] = factor * gy
         return out
@@ -263,86 +516,37 @@ def pressure_gradient(wt: fm.Weight, grad: fm.Gradient) -> Any:
     return pressure_gradient
 
 
-# --------------------------------------------------------------------------- Laplacians
-
-
 @factory
 def laplacian_field(wt: fm.Weight, lap: fm.Laplacian) -> Any:
     """The Laplacian of each column of ``phi`` (n, k), k = 1 or 2; out (n, k).
 
     Arguments ``(offsets, nbr, pos, period, phi, re, pref, s, gfactor, gcorr, out, rowsum,
-    rows)``: lap(phi)_i = sum_j c_ij (phi_j - phi_i) [- B_i . grad(phi)_i], c_ij = ``pref`` *
-    the model's pair formula (``pref`` = its prefactor(n0, lam); ``s`` the moments S of
-    :func:`moments` for a model with a moment, else :data:`NO_MOMENT`).  With ``gcorr`` (the
-    xu-jin gradient correction) B_i = sum_j c_ij r_ij and grad is the original gradient
-    ``gfactor`` sum phi_ij r_ij W / r^2 at the same ``re`` (gfactor = D / n0).  ``rowsum``: an
-    (n,) array that receives sum_j |c_ij| (fused: the stable time step comes with the viscous
-    term), or an empty array.  ``rows``: a boolean array of the rows wanted (the others get 0),
-    or an empty one for all.
+    rows)`` as :func:`laplacian_row`; ``rowsum``: an (n,) array that receives sum_j |c_ij|, or
+    an empty array; ``rows``: a boolean array of the rows wanted (the others get 0), or an
+    empty one for all.
     """
-    coef = fm.laplacian_pair(wt, lap)
-    w_of = fm.number_density_pair(wt)
+    row = laplacian_row(wt, lap, True)
 
-    def laplacian_field(
-        offsets, nbr, pos, period, phi, re, pref, s, gfactor, gcorr, out, rowsum, rows
-    ):
-        n = offsets.shape[0] - 1
+    def laplacian_field(offsets, nbr, pos, period, phi, re, pref, s, gfactor, gcorr, out,
+                        rowsum, rows):
+        x = pos[:, 0]
+        y = pos[:, 1]
+        u = phi[:, 0]
+        v = phi[:, 1] if phi.shape[1] == 2 else phi[:, 0]
         two = phi.shape[1] == 2
         want_rows = rowsum.shape[0] > 0
+        some = rows.shape[0] > 0
         px = period[0]
         py = period[1]
         hx = half_width(px)
         hy = half_width(py)
-        re_s = re * SUPPORT
-        some = rows.shape[0] > 0
-        for i in prange(n):
-            if some and not rows[i]:
-                out[i, 0] = 0.0
-                if two:
-                    out[i, 1] = 0.0
-                if want_rows:
-                    rowsum[i] = 0.0
-                continue
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            ui = phi[i, 0]
-            vi = phi[i, 1] if two else 0.0
+        for i in prange(offsets.shape[0] - 1):
             s0 = 0.0
             s1 = 0.0
             sa = 0.0
-            bx = 0.0
-            by = 0.0
-            g0x = 0.0
-            g0y = 0.0
-            g1x = 0.0
-            g1y = 0.0
-            for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                dx, dy, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
-                r = np.sqrt(r2)
-                ins = inside(r, r2, re_s)
-                c = pref * coef(r, re, s, i, j)
-                c = c if ins else 0.0
-                d0 = phi[j, 0] - ui
-                s0 += c * d0
-                d1 = 0.0
-                if two:
-                    d1 = phi[j, 1] - vi
-                    s1 += c * d1
-                sa += abs(c)
-                if gcorr:
-                    bx += c * dx
-                    by += c * dy
-                    q = RADIAL(r, w_of(r, re))
-                    q = q if ins else 0.0
-                    g0x += d0 * q * dx
-                    g0y += d0 * q * dy
-                    if two:
-                        g1x += d1 * q * dx
-                        g1y += d1 * q * dy
-            if gcorr:
-                s0 -= bx * (gfactor * g0x) + by * (gfactor * g0y)
-                s1 -= bx * (gfactor * g1x) + by * (gfactor * g1y)
+            if not some or rows[i]:
+                s0, s1, sa = row(offsets, nbr, x, y, u, v, i, px, py, hx, hy, re, pref, s,
+                                 gfactor, gcorr)
             out[i, 0] = s0
             if two:
                 out[i, 1] = s1
@@ -353,92 +557,59 @@ def laplacian_field(wt: fm.Weight, lap: fm.Laplacian) -> Any:
     return laplacian_field
 
 
-# ---------------------------------------------------------------- collision, stabilization
+def _collision() -> Any:
+    row = collision_row(True)
 
-
-@kernel
-def collision(
-    offsets, nbr, pos, period, vel, kind, distance, restitution, wall_share, out
-):
-    """Velocity increments of the Lee et al. (2011) collision model (docs/method.md section 4).
-
-    For a fluid particle i and a neighbour j closer than ``distance`` (alpha_c l0) that
-    approaches it, (u_i - u_j) . r_ij > 0 with r_ij = r_j - r_i:
-    du_i = -(1 + e) s_ij [(u_i - u_j) . r_ij / r_ij^2] r_ij, with s_ij = m_j/(m_i + m_j) = 1/2
-    for a fluid j and ``wall_share`` for a boundary j (1.0: infinitely heavy wall, the
-    reference backend's choice; 0.5: equal masses).  All pairs use the input velocities
-    (Jacobi update, order independent).  Non-fluid rows get 0.  out (n, 2).
-    """
-    n = offsets.shape[0] - 1
-    px = period[0]
-    py = period[1]
-    hx = half_width(px)
-    hy = half_width(py)
-    reject = distance * distance * (1.0 + 1e-9)  # beyond this r2, r < distance is impossible
-    for i in prange(n):
-        ax = 0.0
-        ay = 0.0
-        if kind[i] == FLUID:
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            ui = vel[i, 0]
-            vi = vel[i, 1]
-            for k in range(offsets[i], offsets[i + 1]):
-                j = nbr[k]
-                dx, dy, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
-                if r2 > reject or r2 == 0.0 or not np.sqrt(r2) < distance:
-                    continue  # nearly every pair: the branch predicts well
-                approach = (ui - vel[j, 0]) * dx + (vi - vel[j, 1]) * dy
-                if approach > 0.0:
-                    share = 0.5 if kind[j] == FLUID else wall_share
-                    c = share * ((1.0 + restitution) * approach / r2)
-                    ax -= c * dx
-                    ay -= c * dy
-        out[i, 0] = ax
-        out[i, 1] = ay
-    return out
-
-
-@factory
-def stabilization(wt: fm.Weight) -> Any:
-    """Velocity increments of the stabilization (docs/method.md section 5, the pair weight and
-    prefactor of :class:`mpsbench.physics.operators.Stabilization`).
-
-    Arguments ``(offsets, nbr, pos, period, vel, kind, inner, with_walls, re, factor, out)``:
-    du_i = factor sum_j pair_ij (u_j - u_i) for particles with ``inner`` set (fluid, not free
-    surface), 0 elsewhere; ``factor`` = -alpha_s l0 / n0.  ``with_walls``: boundary particles
-    are neighbours in the sum (their ``vel`` is the wall velocity); otherwise only fluid
-    neighbours count.  out (n, 2).
-    """
-    term = fm.stabilization_pair(wt)
-
-    def stabilization(
-        offsets, nbr, pos, period, vel, kind, inner, with_walls, re, factor, out
-    ):
-        n = offsets.shape[0] - 1
+    def collision(offsets, nbr, pos, period, vel, kind, distance, restitution, wall_share, out):
+        """Velocity increments of the Lee et al. (2011) collision model (:func:`collision_row`)
+        of fluid particles (non-fluid rows get 0): ``(offsets, nbr, pos, period, vel, kind,
+        distance, restitution, wall_share, out)``, out (n, 2)."""
+        x = pos[:, 0]
+        y = pos[:, 1]
+        u = vel[:, 0]
+        v = vel[:, 1]
         px = period[0]
         py = period[1]
         hx = half_width(px)
         hy = half_width(py)
-        re_s = re * SUPPORT
-        for i in prange(n):
+        for i in prange(offsets.shape[0] - 1):
+            ax = 0.0
+            ay = 0.0
+            if kind[i] == FLUID:
+                ax, ay = row(offsets, nbr, x, y, u, v, kind, i, px, py, hx, hy, distance,
+                             restitution, wall_share)
+            out[i, 0] = ax
+            out[i, 1] = ay
+        return out
+
+    return collision
+
+
+collision = kernel(_collision())
+
+
+@factory
+def stabilization(wt: fm.Weight) -> Any:
+    """Velocity increments of the stabilization (docs/method.md section 5): du_i = factor
+    sum_j pair_ij (u_j - u_i) for particles with ``inner`` set (fluid, not free surface), 0
+    elsewhere; ``factor`` = -alpha_s l0 / n0.  Arguments ``(offsets, nbr, pos, period, vel,
+    kind, inner, with_walls, re, factor, out)``, out (n, 2); see :func:`stabilization_row`."""
+    row = stabilization_row(wt, True)
+
+    def stabilization(offsets, nbr, pos, period, vel, kind, inner, with_walls, re, factor, out):
+        x = pos[:, 0]
+        y = pos[:, 1]
+        u = vel[:, 0]
+        v = vel[:, 1]
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        for i in prange(offsets.shape[0] - 1):
             s0 = 0.0
             s1 = 0.0
             if inner[i]:
-                xi = pos[i, 0]
-                yi = pos[i, 1]
-                ui = vel[i, 0]
-                vi = vel[i, 1]
-                for k in range(offsets[i], offsets[i + 1]):
-                    j = nbr[k]
-                    if not with_walls and kind[j] != FLUID:
-                        continue
-                    _, _, r2 = sep(pos, j, xi, yi, px, py, hx, hy)
-                    r = np.sqrt(r2)
-                    dw = term(r, re)
-                    dw = dw if inside(r, r2, re_s) else 0.0
-                    s0 += dw * (vel[j, 0] - ui)
-                    s1 += dw * (vel[j, 1] - vi)
+                s0, s1 = row(offsets, nbr, x, y, u, v, kind, i, with_walls, px, py, hx, hy, re)
             out[i, 0] = factor * s0
             out[i, 1] = factor * s1
         return out
@@ -449,15 +620,23 @@ def stabilization(wt: fm.Weight) -> Any:
 __all__ = [
     "NO_MOMENT",
     "collision",
+    "collision_row",
+    "density_row",
     "divergence",
     "gradient",
+    "gradient_row",
     "laplacian_field",
+    "laplacian_row",
     "moments",
     "neighbour_min",
     "number_density",
     "pair_sum",
-    "pressure_gradient",
+    "pair_sum_row",
+    "pmin_row",
     "positive_weight",
-    "sep",
+    "pressure_gradient",
+    "row_function",
+    "separation",
     "stabilization",
+    "stabilization_row",
 ]

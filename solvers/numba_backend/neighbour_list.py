@@ -130,6 +130,17 @@ class CellNeighbourList:
         if self.csr is not None and self.csr.n == len(pos) and self._ref is not None:
             if 2.0 * max_displacement(pos, self._ref, self.period) <= self.skin:
                 return False
+        self.build(pos)
+        return True
+
+    def valid_after(self, displacement: float, n: int) -> bool:
+        """Whether the list built last still serves ``n`` particles that have moved at most
+        ``displacement`` each since (a NaN displacement says no)."""
+        return self.csr is not None and self.csr.n == n and 2.0 * displacement <= self.skin
+
+    def build(self, pos: FloatArray) -> None:
+        """Build the list (and the sub-list) for ``pos`` now."""
+        pos = as_pos(pos)
         group = self.group if self.group is not None and len(self.group) == len(pos) else None
         loose = self.loose if group is not None else None
         self.csr = build_csr(
@@ -142,7 +153,6 @@ class CellNeighbourList:
             )
         self._ref = pos.copy()
         self.builds += 1
-        return True
 
 
 @kernel

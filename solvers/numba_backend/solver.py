@@ -6,9 +6,13 @@ The scheme (set-up, the order of a step, time step, open boundaries) is
 its own formulas (:mod:`.formulas`), so a plugin's weight, Laplacian or pressure gradient does too:
 
 * diffusion: L held as per-entry coefficients of a CSR list built once (particles are fixed);
-* flow (WC-MPS): the number density at r* fused with the equation of state and the free-surface
-  test; a half-list layout (:mod:`.pairs`, each pair once, the default) or full rows
-  (:mod:`.kernels`, ``pairwise=false`` or with the xu-jin gradient correction).
+* flow (WC-MPS): five fused passes per step (:mod:`.fused`: each neighbour sum with the
+  per-particle updates that follow it, rows of a full list computed by their own particle);
+  with ``sort=true`` on particles kept sorted along a space-filling curve (:mod:`.layout`),
+  ``state()`` and ``diagnostics()`` giving the problem's order back.  The default keeps the
+  problem's order: on the quick tier's dam break the sorted runs' other summation order made
+  two runs of the model grid diverge that the reference and the unsorted backend complete
+  (docs/performance.md).
 
 Boundary conventions (as the reference): wall particles take part in pressure and in every
 operator; dummy particles complete the number density and carry the wall velocity into the
@@ -18,7 +22,8 @@ moves rigidly with it are static: their number density is summed once at setup a
 never enter the neighbour list.
 
 Neighbours: one cell-list CSR list at max(r_e, r_e,lap) + skin, rebuilt when a particle has
-moved more than skin/2, and a sub-list at r_e + skin for the kernels at the smaller radius.
+moved more than skin/2 (the move kernels report the largest displacement), and a sub-list at
+r_e + skin for the kernels at the smaller radius.
 """
 
 from __future__ import annotations
@@ -34,16 +39,19 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mpsbench.params import Option
+from mpsbench.physics import operators as ops
 from mpsbench.physics.boundaries import carry
 from mpsbench.physics.config import DiffusionPhysics, FlowPhysics
 from mpsbench.physics.operators import DIM
-from mpsbench.physics.particles import Kind
+from mpsbench.physics.particles import Kind, Particles
 from mpsbench.run.protocol import Capabilities, Health, Problem
 from mpsbench.run.scheme import EquationOfState, SchemeSolver
 
-from . import formulas, kernels, pairs, steps
+from . import formulas, fused, kernels, steps
+from ._jit import report, watch_compiles
 from .cells import CSRNeighbours, build_csr
 from .geometry import box_period
+from .layout import Birth, morton_order
 from .mirror import mirror_velocity
 from .neighbour_list import CellNeighbourList
 
@@ -75,13 +83,14 @@ class NumbaSolver(SchemeSolver):
     """numba-compiled cell-list WC-MPS and diffusion backend (agrees with ``reference``)."""
 
     name = "numba"
-    version = "1.1"
+    version = "2.0"
     capabilities = Capabilities()
     options = (
         Option("threads", 0, "numba threads; 0: automatic (one below 8000 particles or in a "
                "worker process of a pool, else numba's thread count)", kind=int, minimum=0),
-        Option("pairwise", True, "flow on half lists, each pair evaluated once; false: the "
-               "row kernels on full lists", kind=bool),
+        Option("sort", False, "flow: sort the particles along a space-filling curve at each "
+               "neighbour rebuild (memory locality); false: keep the problem's order",
+               kind=bool),
     )
     parallel_min = 8_000
     """With ``threads=0``, problems with fewer particles run on one thread: a parallel region
@@ -90,7 +99,7 @@ class NumbaSolver(SchemeSolver):
     time slice for a descheduled thread.  Inside a worker process of a pool (a study run with
     ``--jobs`` > 1) every problem runs on one thread: the pool already uses the cores."""
 
-    def __init__(self, threads: int | None = 0, pairwise: bool = True) -> None:
+    def __init__(self, threads: int | None = 0, sort: bool = False) -> None:
         super().__init__()
         if threads is not None and (
             not isinstance(threads, int) or isinstance(threads, bool) or threads < 0
@@ -98,9 +107,11 @@ class NumbaSolver(SchemeSolver):
             raise ValueError(f"NumbaSolver: threads = {threads!r} is not allowed: an integer >= 0 "
                              "(0: automatic)")
         self.requested_threads = threads or None
-        self.pairwise = bool(pairwise)
+        self.sort = bool(sort)
         self.threads = 1
         self.timings: dict[str, float] = {}
+        self._watched: list[Any] = []
+        self.compile_times: dict[str, float] = {}  # kernel -> seconds compiling (cache misses)
 
     def _k(self, fn: Any) -> Any:
         """The build of a compiled kernel for this run: serial on one thread (:mod:`._jit`)."""
@@ -117,13 +128,26 @@ class NumbaSolver(SchemeSolver):
     def setup(self, problem: Problem) -> None:
         self.threads = self._choose_threads(problem.particles.n)
         t0 = time.perf_counter()
-        with _threads(self.threads):
+        with _threads(self.threads), watch_compiles() as watch:
             super().setup(problem)
         self.timings["setup_s"] = time.perf_counter() - t0
+        self._watched = [watch]  # the first step compiles the step's kernels: watched too
 
     def step(self, dt: float) -> None:
-        with _threads(self.threads):
+        if not self._watched:
+            with _threads(self.threads):
+                super().step(dt)
+            return
+        with _threads(self.threads), watch_compiles() as watch:
             super().step(dt)
+        self._watched.append(watch)
+        kernels = sum(w.kernels for w in self._watched)
+        seconds = sum(w.seconds for w in self._watched)
+        self.timings["jit_compile_s"] = seconds
+        self.timings["kernels_compiled"] = kernels
+        self.compile_times = {k: v for w in self._watched for k, v in w.each.items()}
+        self._watched = []
+        report(kernels, seconds)
 
     def _compile(self) -> None:
         """The compiled models of this run and the constants in front of their sums."""
@@ -189,16 +213,56 @@ class NumbaSolver(SchemeSolver):
     # ------------------------------------------------------------------ flow: set-up, layout
     def _setup_flow(self, ph: FlowPhysics) -> None:
         self._compile()
+        self._periodic = bool(self.box.any_periodic)
         r_max = max(self.re, self.re_lap)
         small = self.re if self.re < r_max else None
-        self._half = self.pairwise and not self.gcorr
         self.neigh = CellNeighbourList(
-            r_max, self.skin_ratio * self.l0, self.box, r_small=small, half=self._half,
-            serial=self.threads == 1,
+            r_max, self.skin_ratio * self.l0, self.box, r_small=small, serial=self.threads == 1
         )
-        self._chunk_build = -1
+        self._sort_cell = self.re + self.skin_ratio * self.l0
+        grad = self.fm.gradient
+        self._pmin_mode = fused.PMIN_NONE
+        if grad.uses_pmin:
+            reads = ops.reads(grad.pair.py_func) + (True,) * 4
+            self._pmin_mode = fused.PMIN_TABLE if reads[3] else fused.PMIN_ROW
+        self.birth = Birth(self.p.n)
+        self._adopt(self.p)
         self._set_static()
-        self._allocate()
+
+    def _adopt(self, p: Any) -> None:
+        """Take ``p`` as the particles: positions and velocities into (2, n) arrays that
+        ``p.pos`` and ``p.vel`` view, per-particle work arrays for its size."""
+        n = p.n
+        self._X = np.ascontiguousarray(p.pos.T)
+        self._V = np.ascontiguousarray(p.vel.T)
+        self._X2 = np.empty_like(self._X)
+        self._V2 = np.empty_like(self._V)
+        self._views()
+        self._DU = np.zeros((2, n))
+        self._W = np.empty((2, n))
+        self._Xref = self._X.copy()
+        self._disp = np.inf  # max displacement since the list was built (none yet)
+        self._speed2: float | None = None  # max |u|^2 after the last move
+        self._pmin = np.empty(n)
+        self._inner = np.zeros(n, dtype=bool)
+        self._no_dummy = np.ascontiguousarray(p.kind != Kind.DUMMY)
+        if self.fm.laplacian.has_moment:
+            self._moment = np.zeros(n)
+        self._sched = fused.Schedule.of(n)
+        self._partial = np.zeros((self._sched.blocks, 2))
+        if len(self.number_density) != n:
+            self.number_density = np.zeros(n)
+            self.free_surface = np.zeros(n, dtype=bool)
+
+    def _views(self) -> None:
+        self.p.pos = self._X.T
+        self.p.vel = self._V.T
+
+    def _swap(self) -> None:
+        """The kernel just written ``X2``, ``V2`` holds the state: make it current."""
+        self._X, self._X2 = self._X2, self._X
+        self._V, self._V2 = self._V2, self._V
+        self._views()
 
     def _set_static(self) -> None:
         """Rigid groups and the static number density (pairs that never change)."""
@@ -215,32 +279,60 @@ class NumbaSolver(SchemeSolver):
         self.neigh.set_static(group=self.group, loose=self.loose)
         self.static_n = np.zeros(p.n)
         if solid.any():
+            pos = np.ascontiguousarray(p.pos)
             csr = self._full_list(self.re)
             self._k(steps.static_density(self.fm.weight))(
-                csr.offsets, csr.nbr, p.pos, self.period, self.re, self.group, self.loose,
+                csr.offsets, csr.nbr, pos, self.period, self.re, self.group, self.loose,
                 self.static_n,
             )
 
-    def _allocate(self) -> None:
-        n = self.p.n
-        self._lap = np.zeros((n, 2))
-        self._rows = np.zeros(n)
-        self._grad = np.empty((n, 2))
-        self._du = np.zeros((n, 2))
-        self._tmp = np.empty((n, 2))
-        self._stab = np.zeros((n, 2))
-        self._stab_factor = 0.0
-        self._pmin = np.empty(n)
-        self._inner = np.zeros(n, dtype=bool)
-        if self.fm.laplacian.has_moment:
-            self._moment = np.zeros(n)
-        k = pairs.CHUNKS
-        self._acc_v = np.zeros((k, n, 2))  # per-chunk accumulators of the half-list kernels
-        self._acc_n = np.zeros((k, n))
-        self._acc_rows = np.zeros((k, n))
-        if len(self.number_density) != n:
-            self.number_density = np.zeros(n)
-            self.free_surface = np.zeros(n, dtype=bool)
+    def _sort(self) -> None:
+        """Permute every per-particle array along the Z curve of the current positions."""
+        if not self.sort:
+            return
+        order = morton_order(self._X, self._sort_cell)
+        if np.array_equal(order, np.arange(len(order))):
+            return
+        p = self.p
+        self._X = np.ascontiguousarray(self._X[:, order])
+        self._V = np.ascontiguousarray(self._V[:, order])
+        p.kind = p.kind[order]
+        p.pressure = p.pressure[order]
+        p.fields = {k: v[order] for k, v in p.fields.items()}
+        self._views()
+        for name in ("number_density", "free_surface", "static_n", "group", "loose",
+                     "_no_dummy"):
+            setattr(self, name, getattr(self, name)[order])
+        self.birth.permute(order)
+        self.neigh.set_static(group=self.group, loose=self.loose)
+
+    def _rebuild(self) -> None:
+        self._sort()
+        self.neigh.build(self.p.pos)
+        self._Xref[:] = self._X
+        self._disp = 0.0
+        self.counters["neighbour_builds"] = self.neigh.builds
+
+    def _update_neighbours(self) -> None:
+        if not self.neigh.valid_after(self._disp, self.p.n):
+            self._rebuild()
+
+    def _particles_changed(self, keep: NDArray[np.bool_]) -> None:
+        # the kernels want contiguous arrays; a boolean selection already is one
+        self.static_n = carry(self.static_n, keep)
+        self.group = carry(self.group + 1, keep) - 1  # new particles: no group
+        self.loose = carry(self.loose, keep)
+        self.birth.carry(keep)
+        self.neigh.set_static(group=self.group, loose=self.loose)
+        self._adopt(self.p)
+
+    def rebuild_neighbours(self) -> None:
+        """Sort the particles and rebuild the neighbour list now (``mpsbench bench`` times
+        this)."""
+        if self.problem is None or isinstance(self.problem.physics, DiffusionPhysics):
+            return
+        with _threads(self.threads):
+            self._rebuild()
 
     def _lists(self) -> tuple[tuple[Any, Any], tuple[Any, Any]]:
         """((offsets, nbr) of the big list, (offsets, nbr) of the list at r_e)."""
@@ -249,180 +341,122 @@ class NumbaSolver(SchemeSolver):
         small = self.neigh.small if self.neigh.small is not None else big
         return (big.offsets, big.nbr), (small.offsets, small.nbr)
 
-    def _chunks(self) -> tuple[Any, Any]:
-        """Chunk bounds of the big and the small half list (recomputed after a rebuild)."""
-        if self._chunk_build != self.neigh.builds:
-            big, small = self._lists()
-            self._bounds = (pairs.chunk_bounds(big[0]), pairs.chunk_bounds(small[0]))
-            self._chunk_build = self.neigh.builds
-        return self._bounds
-
-    def _update_neighbours(self) -> None:
-        self.neigh.update(self.p.pos)
-        self.counters["neighbour_builds"] = self.neigh.builds
-
-    def _particles_changed(self, keep: NDArray[np.bool_]) -> None:
-        # the kernels want contiguous arrays; a boolean selection already is one
-        self.static_n = carry(self.static_n, keep)
-        self.group = carry(self.group + 1, keep) - 1  # new particles: no group
-        self.loose = carry(self.loose, keep)
-        self.neigh.set_static(group=self.group, loose=self.loose)
-        self._allocate()
-
-    def rebuild_neighbours(self) -> None:
-        """Rebuild the neighbour list now (``mpsbench bench`` times this)."""
-        if self.problem is None or isinstance(self.problem.physics, DiffusionPhysics):
-            return
-        with _threads(self.threads):
-            self.neigh.invalidate()
-            self.neigh.update(self.p.pos)
-
-    # ------------------------------------------------------------------ flow: the step's pieces
+    # ------------------------------------------------------------------ flow: the step's passes
     def _number_density(self) -> FloatArray:
-        _, small = self._lists()
-        wt = self.fm.weight
-        if self._half:
-            self._k(pairs.density_pairs(wt))(
-                *small, self.p.pos, self.period, self.re, self._chunks()[1], self._acc_n
-            )
-            return self._acc_n.sum(axis=0) + self.static_n
-        return self.static_n + self._k(kernels.number_density(wt))(
-            *small, self.p.pos, self.period, self.re, np.empty(self.p.n)
-        )
+        self._density(None)
+        return self.number_density
 
-    def _viscous(self, mirror: bool) -> float:
-        """Laplacian of the (mirrored) velocity into ``_lap`` (rows) or ``_acc_v`` (half)."""
-        big, _ = self._lists()
-        p, wt, lap = self.p, self.fm.weight, self.fm.laplacian
-        u = p.vel
-        if mirror:
-            u = mirror_velocity(p, wt, self.re, self.box, self.threads == 1)
-        if self._half:
-            bounds = self._chunks()[0]
-            if lap.has_moment:
-                self._k(pairs.pair_sum_pairs(wt, lap.moment))(
-                    *big, p.pos, self.period, self.re_lap, bounds, self._acc_n
-                )
-                self._k(pairs.sum_chunks)(self._acc_n, self._moment)
-            self._k(pairs.laplacian_pairs(wt, lap))(
-                *big, p.pos, self.period, u, self.re_lap, self.pref, self._moment, bounds,
-                self._acc_v, self._acc_rows,
-            )
-            return float(pairs.fluid_row_max(self._acc_rows, p.kind))
-        if lap.has_moment:
-            self._k(kernels.moments(wt, lap))(*big, p.pos, self.period, self.re_lap,
-                                              self._moment)
-        self._k(kernels.laplacian_field(wt, lap))(
-            *big, p.pos, self.period, u, self.re_lap, self.pref, self._moment, self.gfactor,
-            self.gcorr, self._lap, self._rows, p.kind == Kind.FLUID,
-        )
-        return float(steps.max_over(self._rows, p.kind, True))  # fluid rows
-
-    def _predict(self, dt: float, ph: FlowPhysics) -> None:
+    def _density(self, eos: EquationOfState | None) -> None:
         p = self.p
-        lap = self._acc_v if self._half else self._lap
-        fn = pairs.predictor_from if self._half else steps.predictor
-        self._k(fn)(p.pos, p.vel, lap, ph.nu > 0, ph.nu, ph.gravity[0], ph.gravity[1], dt, p.kind)
+        _, small = self._lists()
+        e = eos if eos is not None else EquationOfState(False, 1.0, 1.0, False, 0.0, 1.0)
+        self._k(fused.density_pressure(self.fm.weight, self._periodic))(
+            *small, self._X, self.period, self.re, self.static_n, p.kind, e.n0, e.tait,
+            e.prefactor, e.gamma, e.clip, e.beta, eos is not None, self.number_density,
+            p.pressure, self.free_surface, self._inner, self._sched.order, self._sched.bounds,
+        )
 
     def _density_pressure(self, eos: EquationOfState) -> None:
-        p = self.p
-        _, small = self._lists()
-        state = (p.kind, eos.n0, eos.tait, eos.prefactor, eos.gamma, eos.clip, eos.beta,
-                 self.number_density, p.pressure, self.free_surface, self._inner)
-        if self._half:
-            self._k(pairs.density_pairs(self.fm.weight))(
-                *small, p.pos, self.period, self.re, self._chunks()[1], self._acc_n
-            )
-            self._k(pairs.pressure_from)(self._acc_n, self.static_n, *state)
-            return
-        self._k(steps.density_pressure(self.fm.weight))(
-            *small, p.pos, self.period, self.re, self.static_n, *state
-        )
+        self._density(eos)
 
-    def _pressure_increment(self, factor: float) -> None:
+    def _laplacian(self, dt: float, nu: float, gravity: tuple[float, float], U: Any) -> float:
+        """The predictor kernel (viscous when nu > 0); new state in ``X2``, ``V2``; returns the
+        max fluid row sum and records the displacement."""
+        big, _ = self._lists()
+        p, wt, lap = self.p, self.fm.weight, self.fm.laplacian
+        viscous = nu > 0
+        if viscous and lap.has_moment:
+            self._k(kernels.moments(wt, lap))(*big, p.pos, self.period, self.re_lap,
+                                              self._moment)
+        self._k(fused.predict(wt, lap, self._periodic))(
+            *big, self._X, self._V, U, self.period, self.re_lap, self.pref, self._moment,
+            self.gfactor, self.gcorr, viscous, nu, gravity[0], gravity[1], dt, p.kind,
+            self._Xref, self._X2, self._V2, self._sched.order, self._sched.bounds,
+            self._partial,
+        )
+        rows, disp2 = fused.combine_max(self._partial)
+        self._pending_disp = float(np.sqrt(disp2))
+        return float(rows)
+
+    def _row_sums(self) -> float:
+        return self._laplacian(0.0, 1.0, (0.0, 0.0), self._V)  # X2, V2 are not taken
+
+    def _predict(self, dt: float, ph: FlowPhysics) -> float | None:
+        U = self._V
+        if ph.nu > 0 and ph.wall_velocity == "mirror":
+            vel = mirror_velocity(self.p, self.fm.weight, self.re, self.box, self.threads == 1)
+            U = np.ascontiguousarray(vel.T)
+        rows = self._laplacian(dt, ph.nu, ph.gravity, U)
+        self._swap()
+        self._disp = self._pending_disp
+        self._speed2 = None
+        return rows if ph.nu > 0 else None
+
+    def _correct(self, factor: float, collision: tuple[float, float] | None) -> None:
         p, wt, grad = self.p, self.fm.weight, self.fm.gradient
-        kind = p.kind
         _, small = self._lists()
-        no_dummy = kind != Kind.DUMMY
-        pmin = self._pmin if grad.uses_pmin else p.pressure
-        if self._half:
-            bounds = self._chunks()[1]
-            if grad.uses_pmin:
-                self._k(pairs.pmin_pairs(wt))(
-                    *small, p.pos, self.period, p.pressure, no_dummy, self.re, bounds, self._acc_n
-                )
-                pairs.combine_min(self._acc_n, self._pmin)
-            self._k(pairs.gradient_pairs(wt, grad))(
-                *small, p.pos, self.period, p.pressure, pmin, no_dummy, kind, self.re, bounds,
-                self._acc_v,
+        pmin = p.pressure
+        if self._pmin_mode == fused.PMIN_TABLE:
+            self._k(fused.pmin_all(wt, self._periodic))(
+                *small, self._X, self.period, p.pressure, self._no_dummy, self.re, self._pmin,
+                self._sched.order, self._sched.bounds,
             )
-            factors = np.array([self.grad_factor, factor])
-            self._k(pairs.pressure_increment_from)(self._acc_v, kind, factors, self._du)
-            return
-        if grad.uses_pmin:
-            self._k(kernels.neighbour_min(wt))(
-                *small, p.pos, self.period, p.pressure, no_dummy, self.re, self._pmin
-            )
-        self._k(kernels.pressure_gradient(wt, grad))(
-            *small, p.pos, self.period, p.pressure, pmin, no_dummy, self.re, self.grad_factor,
-            self._grad, kind == Kind.FLUID,
+            pmin = self._pmin
+        self._k(fused.correct(wt, grad, self._periodic, self._pmin_mode))(
+            *small, self._X, self.period, p.pressure, pmin, self._no_dummy, self.re,
+            self.grad_factor, factor, p.kind, self._V, self._DU, self._W, collision is not None,
+            self._sched.order, self._sched.bounds,
         )
-        self._k(steps.pressure_increment)(self._grad, kind, factor, self._du)
+        if collision is not None:
+            self._k(fused.collide(self._periodic))(
+                *small, self._X, self.period, self._W, p.kind, collision[0], collision[1], 1.0,
+                self._V, self._DU, self._sched.order, self._sched.bounds,
+            )
 
-    def _collision(self, distance: float, restitution: float) -> None:
+    def _move(self, dt: float, stabilization: tuple[float, bool] | None) -> None:
         p = self.p
         _, small = self._lists()
-        self._k(steps.add_into)(p.vel, self._du, self._tmp)
-        if self._half:
-            self._k(pairs.collision_pairs)(
-                *small, p.pos, self.period, self._tmp, p.kind, distance, restitution, 1.0,
-                self._chunks()[1], self._acc_v,
-            )
-            self._k(pairs.add_from)(self._acc_v, self._du)
-            return
-        self._k(kernels.collision)(
-            *small, p.pos, self.period, self._tmp, p.kind, distance, restitution, 1.0, self._stab
+        factor, walls = stabilization if stabilization is not None else (0.0, True)
+        self._k(fused.move(self.fm.weight, self._periodic))(
+            *small, self._X, self._V, self._DU, self.period, p.kind, self._inner, walls, self.re,
+            factor, stabilization is not None, dt, self._Xref, self._X2, self._V2,
+            self._sched.order, self._sched.bounds, self._partial,
         )
-        self._du += self._stab
+        disp2, speed2 = fused.combine_max(self._partial)
+        self._swap()
+        self._disp = float(np.sqrt(disp2))
+        self._speed2 = float(speed2)
 
-    def _add_increment(self) -> None:
-        self.p.vel += self._du
+    # ------------------------------------------------------------------ the caller's view
+    def state(self) -> Particles:
+        """The particles in the problem's order (with ``sort``, a copy: the solver keeps its own,
+        sorted along a space-filling curve; :mod:`.layout`)."""
+        if not hasattr(self, "birth") or not self.sort:
+            return self.p
+        return self.p.subset(self.birth.external())
 
-    def _stabilize(self, factor: float, with_walls: bool) -> None:
-        p = self.p
-        _, small = self._lists()
-        if self._half:
-            self._k(pairs.stabilization_pairs(self.fm.weight))(
-                *small, p.pos, self.period, p.vel, p.kind, self._inner, with_walls, self.re,
-                self._chunks()[1], self._acc_v,
-            )
-            self._stab_factor = factor
-            return
-        self._k(kernels.stabilization(self.fm.weight))(
-            *small, p.pos, self.period, p.vel, p.kind, self._inner, with_walls, self.re, factor,
-            self._stab,
-        )
-
-    def _move(self, dt: float, stabilized: bool) -> None:
-        p = self.p
-        if self._half:
-            self._k(pairs.corrector_from)(
-                p.pos, p.vel, self._du, dt, self._acc_v, self._stab_factor, stabilized
-            )
-        else:
-            self._k(steps.corrector)(p.pos, p.vel, self._du, dt, self._stab, stabilized)
+    def diagnostics(self) -> dict[str, Any]:
+        out = super().diagnostics()
+        if hasattr(self, "birth") and self.sort:
+            ext = self.birth.external()
+            out["number_density"] = self.number_density[ext]
+            out["free_surface"] = self.free_surface[ext]
+        return out
 
     # ------------------------------------------------------------------ cheap summaries
     def _max_speed(self) -> float:
-        return float(steps.max_speed(self.p.vel))
+        if self._speed2 is not None and hasattr(self, "birth"):
+            return float(np.sqrt(self._speed2))
+        return super()._max_speed()
 
     def health(self, margin: float) -> Health:
         assert self.problem is not None
         p, box = self.p, self.box
         name = getattr(self.problem.physics, "field_name", None)
         field = p.fields[name] if name is not None else _NO_FIELD
+        X, V = (self._X, self._V) if hasattr(self, "birth") else (p.pos.T, p.vel.T)
         finite, speed, outside, fmax = steps.health(
-            p.pos, p.vel, p.pressure, p.kind, np.asarray(box.lo, np.float64),
+            X, V, p.pressure, p.kind, np.asarray(box.lo, np.float64),
             np.asarray(box.hi, np.float64), np.array([not a for a in box.periodic]),
             float(margin), np.ascontiguousarray(field, dtype=np.float64),
         )

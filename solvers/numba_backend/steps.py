@@ -1,11 +1,11 @@
-"""numba pieces of the WC-MPS and diffusion steps that are not neighbour sums of a model.
+"""numba pieces of the WC-MPS and diffusion steps that are not a fused pass of :mod:`.fused`.
 
-Per-particle updates (predictor, corrector, the equation of state fused with the number density),
-the static number density of rigid pairs, the health summary the runner asks for after each
-step, and the diffusion operator held as per-entry coefficients of the CSR list.  Formulas and
-the order of floating-point operations follow :mod:`mpsbench.run.scheme` and the reference
-backend where that is cheap, so that the backends agree to rounding; the conventions (kinds,
-masks, ``offsets, nbr, pos, period``) are those of :mod:`.kernels`.  Units are SI.
+The equation of state (called at the end of each row of the number density), the static number
+density of rigid pairs, the health summary the runner asks for after each step, and the
+diffusion operator held as per-entry coefficients of the CSR list.  Formulas and the order of
+floating-point operations follow :mod:`mpsbench.run.scheme` and the reference backend where
+that is cheap, so that the backends agree to rounding; the conventions (kinds, masks,
+``offsets, nbr, pos, period`` with pos (n, 2)) are those of :mod:`.kernels`.  Units are SI.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from . import formulas as fm
 from ._jit import compiled, factory, kernel
 from .formulas import DUMMY, FLUID, RADIAL, SUPPORT, inside
 from .geometry import half_width
-from .kernels import sep
+from .geometry import pos_sep as sep
 
 # --------------------------------------------------------------------------- equation of state
 
@@ -78,40 +78,6 @@ def state_of(i, ni, kind, n0, tait, prefactor, gamma, igamma, clip, threshold, n
 
 
 @factory
-def density_pressure(wt: fm.Weight) -> Any:
-    """Number density, equation of state and free surface in one pass (the scheme's step 3):
-    n_i = sum_j W_ij + static_n_i; the rest as :func:`state_of`.  Arguments ``(offsets, nbr,
-    pos, period, re, static_n, kind, n0, tait, prefactor, gamma, clip, beta, n_out, p_out,
-    surface, inner)``."""
-    w_of = fm.number_density_pair(wt)
-
-    def density_pressure(offsets, nbr, pos, period, re, static_n, kind, n0, tait, prefactor,
-                         gamma, clip, beta, n_out, p_out, surface, inner):
-        n = offsets.shape[0] - 1
-        px = period[0]
-        py = period[1]
-        hx = half_width(px)
-        hy = half_width(py)
-        re_s = re * SUPPORT
-        threshold = beta * n0
-        igamma = integer_gamma(gamma)
-        for i in prange(n):
-            xi = pos[i, 0]
-            yi = pos[i, 1]
-            s = 0.0
-            for k in range(offsets[i], offsets[i + 1]):
-                _, _, r2 = sep(pos, nbr[k], xi, yi, px, py, hx, hy)
-                r = np.sqrt(r2)
-                w = w_of(r, re)
-                s += w if inside(r, r2, re_s) else 0.0
-            state_of(i, s + static_n[i], kind, n0, tait, prefactor, gamma, igamma, clip,
-                     threshold, n_out, p_out, surface, inner)
-        return n_out
-
-    return density_pressure
-
-
-@factory
 def static_density(wt: fm.Weight) -> Any:
     """sum_j W_ij over the static pairs of each particle (same rigid group, not both loose):
     ``(offsets, nbr, pos, period, re, group, loose, out)``."""
@@ -144,93 +110,24 @@ def static_density(wt: fm.Weight) -> Any:
     return static_density
 
 
-# --------------------------------------------------------------------------- flow step
-
-
-@kernel
-def predictor(pos, vel, lap, use_lap, nu, gx, gy, dt, kind):
-    """u* = u + dt (nu lap(u) + g) for fluid particles; every particle moves by dt u*."""
-    n = pos.shape[0]
-    for i in prange(n):
-        if kind[i] == FLUID:
-            ax = nu * lap[i, 0] if use_lap else 0.0
-            ay = nu * lap[i, 1] if use_lap else 0.0
-            vel[i, 0] += dt * (ax + gx)
-            vel[i, 1] += dt * (ay + gy)
-        pos[i, 0] += dt * vel[i, 0]
-        pos[i, 1] += dt * vel[i, 1]
-
-
-@kernel
-def pressure_increment(grad, kind, factor, du):
-    """du = factor * grad on fluid particles (factor = -dt / rho0), 0 elsewhere."""
-    for i in prange(grad.shape[0]):
-        if kind[i] == FLUID:
-            du[i, 0] = factor * grad[i, 0]
-            du[i, 1] = factor * grad[i, 1]
-        else:
-            du[i, 0] = 0.0
-            du[i, 1] = 0.0
-
-
-@kernel
-def add_into(a, b, out):
-    """out = a + b for (n, 2) arrays."""
-    for i in prange(a.shape[0]):
-        out[i, 0] = a[i, 0] + b[i, 0]
-        out[i, 1] = a[i, 1] + b[i, 1]
-
-
-@kernel
-def corrector(pos, vel, du, dt, stab, use_stab):
-    """r += dt du; u += stab (the velocity update u += du is done before the stabilization)."""
-    for i in prange(pos.shape[0]):
-        pos[i, 0] += dt * du[i, 0]
-        pos[i, 1] += dt * du[i, 1]
-        if use_stab:
-            vel[i, 0] += stab[i, 0]
-            vel[i, 1] += stab[i, 1]
+# --------------------------------------------------------------------------- health
 
 
 @compiled
-def max_over(values, kind, only_fluid):
-    """max of ``values`` over fluid particles (or all); 0.0 when there is none."""
-    m = -np.inf
-    found = False
-    for i in range(values.shape[0]):
-        if only_fluid and kind[i] != FLUID:
-            continue
-        found = True
-        if values[i] > m:
-            m = values[i]
-    return m if found else 0.0
-
-
-@compiled
-def max_speed(vel):
-    """max_i |u_i| (sqrt of the largest u^2 + v^2: the same bits as the max of the norms)."""
-    m = 0.0
-    for i in range(vel.shape[0]):
-        s = vel[i, 0] ** 2 + vel[i, 1] ** 2
-        if s > m or s != s:
-            m = s
-    return np.sqrt(m)
-
-
-@compiled
-def health(pos, vel, pressure, kind, lo, hi, free_axis, margin, field):
+def health(X, V, pressure, kind, lo, hi, free_axis, margin, field):
     """(all finite, max fluid speed, fluid particles outside the box by more than ``margin``,
-    max |field|) in one pass: what the runner checks after every step.  ``free_axis``: which
-    axes the box bounds (periodic axes do not); ``field``: the diffusion scalar or an empty
-    array.  Non-finite values make the speed or the field maximum NaN."""
+    max |field|) in one pass: what the runner checks after every step.  ``X``, ``V``: positions
+    and velocities as (2, n) arrays; ``free_axis``: which axes the box bounds (periodic axes do
+    not); ``field``: the diffusion scalar or an empty array.  Non-finite values make the speed or
+    the field maximum NaN."""
     finite = True
     m2 = 0.0
     out = 0
-    for i in range(pos.shape[0]):
-        x = pos[i, 0]
-        y = pos[i, 1]
-        u = vel[i, 0]
-        v = vel[i, 1]
+    for i in range(X.shape[1]):
+        x = X[0, i]
+        y = X[1, i]
+        u = V[0, i]
+        v = V[1, i]
         if not (np.isfinite(x) and np.isfinite(y) and np.isfinite(u) and np.isfinite(v)
                 and np.isfinite(pressure[i])):
             finite = False

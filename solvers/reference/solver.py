@@ -75,27 +75,41 @@ class ReferenceSolver(SchemeSolver):
         assert self.neigh.static_n is not None
         return number_density(self.pairs, w) + self.neigh.static_n
 
-    def _viscous(self, mirror: bool) -> float:
-        p = self.p
-        c = self.laplacian.coefficients(self.pairs, self.weight, self.re_lap, self.n0_lap,
-                                        self.lam)
-        fluid = p.kind == Kind.FLUID
+    def _laplacian_coefficients(self) -> FloatArray:
+        return self.laplacian.coefficients(self.pairs, self.weight, self.re_lap, self.n0_lap,
+                                           self.lam)
+
+    def _fluid_row_max(self, c: FloatArray) -> float:
+        fluid = self.p.kind == Kind.FLUID
         rows = self.pairs.sum_sym(np.abs(c))
-        u = mirror_velocity(p, self.weight, self.re, self.box) if mirror else p.vel
-        self._lap = self.laplacian.apply(
-            self.pairs, u, self.weight, self.re_lap, self.n0_lap, self.lam, coef=c
-        )
         return float(rows[fluid].max()) if fluid.any() else 0.0
 
-    def _predict(self, dt: float, ph: FlowPhysics) -> None:
+    def _row_sums(self) -> float:
+        return self._fluid_row_max(self._laplacian_coefficients())
+
+    def _predict(self, dt: float, ph: FlowPhysics) -> float | None:
+        """Viscosity (the boundary velocities mirrored at walls with ``mirror``) and gravity on
+        fluid, then every particle moves by dt u*; returns the Laplacian's max fluid row sum."""
         p = self.p
         fluid = p.kind == Kind.FLUID
-        acc = ph.nu * self._lap if ph.nu > 0 else np.zeros_like(p.vel)
+        rows = None
+        if ph.nu > 0:
+            c = self._laplacian_coefficients()
+            rows = self._fluid_row_max(c)
+            mirror = ph.wall_velocity == "mirror"
+            u = mirror_velocity(p, self.weight, self.re, self.box) if mirror else p.vel
+            lap = self.laplacian.apply(
+                self.pairs, u, self.weight, self.re_lap, self.n0_lap, self.lam, coef=c
+            )
+            acc = ph.nu * lap
+        else:
+            acc = np.zeros_like(p.vel)
         acc += np.asarray(ph.gravity)
         p.vel[fluid] += dt * acc[fluid]
         disp = dt * p.vel
         p.pos += disp
         self.neigh.note_motion(disp)
+        return rows
 
     def _density_pressure(self, eos: EquationOfState) -> None:
         n = self._number_density()
@@ -108,11 +122,15 @@ class ReferenceSolver(SchemeSolver):
         w = np.where(self.neigh.no_dummy, self._w, 0.0)
         return self.gradient(self.pairs, pres, w, self.n0)
 
-    def _pressure_increment(self, factor: float) -> None:
+    def _correct(self, factor: float, collision: tuple[float, float] | None) -> None:
+        """du = factor grad(p) on fluid; with ``collision`` its increments at u + du; u += du."""
         grad = self._pressure_gradient(self.p.pressure)
         fluid = self.p.kind == Kind.FLUID
         self.du = np.zeros_like(self.p.vel)
         self.du[fluid] = factor * grad[fluid]
+        if collision is not None:
+            self._collision(*collision)
+        self.p.vel += self.du
 
     def _collision(self, distance: float, restitution: float) -> None:
         """Lee et al. (2011): remove the approaching normal velocity of too-close pairs."""
@@ -138,10 +156,7 @@ class ReferenceSolver(SchemeSolver):
         out[kind != Kind.FLUID] = 0.0
         self.du += out
 
-    def _add_increment(self) -> None:
-        self.p.vel += self.du
-
-    def _stabilize(self, factor: float, with_walls: bool) -> None:
+    def _stabilization(self, factor: float, with_walls: bool) -> FloatArray:
         """du_i = factor sum_j W'_ij (u_j - u_i) for inner fluid particles (the pair weight of
         :class:`mpsbench.physics.operators.Stabilization`), at the r* geometry of the pairs."""
         pairs, kind = self.pairs, self.p.kind
@@ -156,14 +171,15 @@ class ReferenceSolver(SchemeSolver):
         out *= factor
         inner = (kind == Kind.FLUID) & ~self.free_surface
         out[~inner] = 0.0
-        self._stab = out
+        return out
 
-    def _move(self, dt: float, stabilized: bool) -> None:
+    def _move(self, dt: float, stabilization: tuple[float, bool] | None) -> None:
+        stab = None if stabilization is None else self._stabilization(*stabilization)
         disp = dt * self.du
         self.p.pos += disp
         self.neigh.note_motion(disp)
-        if stabilized:
-            self.p.vel += self._stab
+        if stab is not None:
+            self.p.vel += stab
 
     def _particles_changed(self, keep: NDArray[np.bool_]) -> None:
         self.neigh.invalidate()
