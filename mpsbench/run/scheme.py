@@ -190,9 +190,8 @@ class SchemeSolver(SolverBase):
             self.rho_lap = 2.0 * self._viscous(mirror=ph.wall_velocity == "mirror")
         self._predict(dt, ph)
         self._wrap()
-        # 3: number density at r*, equation of state, free surface
-        self._update_neighbours()
-        self._density_pressure(self.eos)
+        # 3: number density at r*, pressure (here the equation of state), free surface
+        self._pressure_step(dt, ph)
         # 4: corrector, without dummy particles
         self._pressure_increment(-(dt / ph.rho0))
         # 5: collision on u* + u'
@@ -207,6 +206,13 @@ class SchemeSolver(SolverBase):
         # 7: wrap, open boundaries
         self._wrap()
         self._open_boundaries(dt)
+
+    def _pressure_step(self, dt: float, ph: FlowPhysics) -> None:
+        """Step 3 at r*: the number density, the pressure and the free-surface flags.  WC-MPS
+        takes the pressure from the equation of state; the semi-implicit scheme
+        (:mod:`mpsbench.run.implicit_scheme`) solves a pressure Poisson equation instead."""
+        self._update_neighbours()
+        self._density_pressure(self.eos)
 
     def _wrap(self) -> None:
         if self.box.any_periodic:
