@@ -100,6 +100,7 @@ class SemiImplicitScheme(SchemeSolver):
         tol: float = 1e-8,
         max_iterations: int = 0,
         compressibility: str = "closed",
+        blas_threads: int = 1,
     ) -> None:
         super().__init__()
         for name, value, allowed in (("source", source, SOURCES),
@@ -119,7 +120,8 @@ class SemiImplicitScheme(SchemeSolver):
         self.surface = surface
         self.surface_offset = float(surface_offset)
         self.compressibility = compressibility
-        self.linear = LinearSolver(linear_solver, preconditioner, tol, max_iterations)
+        self.linear = LinearSolver(linear_solver, preconditioner, tol, max_iterations,
+                                   blas_threads)
         self.counters.update({k: 0.0 for k in COUNTERS})
         self.last_solve: dict[str, Any] = {}
         # per solve (one per step): iterations, true relative residual, tolerance met

@@ -18,6 +18,12 @@ Methods (``method``):
 
 A solve that does not reach the tolerance raises :class:`NotConverged`: the run is recorded as
 failed with the iteration count and residual, never continued on a wrong pressure.
+
+BLAS threads (``blas_threads``, default 1): the Krylov loops are dot products and vector updates
+on vectors of 10^4-10^5 entries, which OpenBLAS spreads over its threads; on a shared 2-core
+machine (load 7-10) that made a 33k-unknown CG solve ten times slower (2.5 s against 25-31 s,
+tests/benchmarks/test_bench_implicit.py at 40k particles).  The solves run inside
+``threadpoolctl.threadpool_limits`` with that many threads (0: the library's own setting).
 """
 
 from __future__ import annotations
@@ -82,7 +88,7 @@ class LinearSolver:
     """
 
     def __init__(self, method: str = "cg", preconditioner: str = "jacobi", tol: float = 1e-8,
-                 max_iterations: int = 0) -> None:
+                 max_iterations: int = 0, blas_threads: int = 1) -> None:
         if method not in METHODS:
             raise ValueError(f"linear_solver = {method!r} is not allowed: one of "
                              f"{', '.join(METHODS)}")
@@ -101,10 +107,22 @@ class LinearSolver:
         self.preconditioner = preconditioner
         self.tol = float(tol)
         self.max_iterations = int(max_iterations)
+        if not (isinstance(blas_threads, int) and blas_threads >= 0):
+            raise ValueError(f"blas_threads = {blas_threads!r} is not allowed: an integer >= 0")
+        self.blas_threads = blas_threads
         self._cached: tuple[Any, Any] | None = None  # (matrix, preconditioner or hierarchy)
 
     def solve(self, m: sp.csr_matrix, y: FloatArray, symmetric: bool,
               x0: FloatArray | None = None, reuse: bool = False) -> tuple[FloatArray, SolveStats]:
+        if not self.blas_threads:
+            return self._solve(m, y, symmetric, x0, reuse)
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(limits=self.blas_threads, user_api="blas"):
+            return self._solve(m, y, symmetric, x0, reuse)
+
+    def _solve(self, m: sp.csr_matrix, y: FloatArray, symmetric: bool,
+               x0: FloatArray | None, reuse: bool) -> tuple[FloatArray, SolveStats]:
         n = len(y)
         norm_y = float(np.linalg.norm(y))
         if n == 0 or norm_y == 0.0:

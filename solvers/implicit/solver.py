@@ -62,6 +62,8 @@ class ImplicitSolver(SemiImplicitScheme, ReferenceSolver):
         Option("compressibility", "closed", "where the quasi-compressibility 1/(c0 dt)^2 "
                "enters: closed (groups without a free surface) or all", kind=str,
                choices=COMPRESSIBILITY),
+        Option("blas_threads", 1, "BLAS threads of the linear solves (0: the library's "
+               "default; on a shared machine more threads made CG slower)", kind=int, minimum=0),
     )
 
     def _pressure_pairs(self) -> PairList:
