@@ -36,7 +36,7 @@ from mpsbench.run.linsolve import LinearSolver, pyamg_available
 from mpsbench.run.protocol import Status
 from mpsbench.run.runner import run
 from mpsbench.run.specs import make_solver
-from mpsbench.testing import check_solver, problems
+from mpsbench.testing import parametrize_solver_checks, problems
 
 NEEDS_PYAMG = pytest.mark.skipif(
     not pyamg_available(), reason="pyamg is not installed (pip install 'mpsbench[pyamg]')"
@@ -324,10 +324,9 @@ def test_backward_euler_on_a_lattice_eigenmode(laplacian: str) -> None:
     assert s.counters["linear_solves"] == steps
 
 
-def test_the_conformance_kit_passes() -> None:
-    results = check_solver("implicit")
-    failed = [r for r in results if r.failed]
-    assert not failed, failed
+@parametrize_solver_checks("implicit")
+def test_the_implicit_backend_conforms(solver: Any, check: Any) -> None:
+    check(solver)
 
 
 def test_records_carry_the_linear_solve_columns() -> None:

@@ -40,6 +40,7 @@ class ImplicitSolver(SemiImplicitScheme, ReferenceSolver):
     name = "implicit"
     version = "1.0"
     capabilities = Capabilities()
+    bench_default = False  # `mpsbench bench` times it only when asked (--solver implicit)
     options = (
         Option("source", "density", "PPE source: density (n* - n0), divergence (div u*), "
                "mixed (divergence + relaxation x density)", kind=str, choices=SOURCES),
