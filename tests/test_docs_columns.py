@@ -43,3 +43,11 @@ def test_every_bench_record_field_is_documented() -> None:
     section = _section(DOC.read_text(), "mpsbench bench")
     missing = [n for n in RECORD_FIELDS if f"`{n}`" not in section]
     assert not missing, f"not in docs/columns.md, 'mpsbench bench': {missing}"
+
+
+def test_every_solver_counter_column_is_documented() -> None:
+    from mpsbench.run.implicit_scheme import COUNTERS
+
+    section = _section(DOC.read_text(), "Columns of every record")
+    missing = [n for n in COUNTERS if f"`{n}`" not in section]
+    assert not missing, f"not in docs/columns.md, 'Columns of every record': {missing}"

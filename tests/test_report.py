@@ -104,3 +104,25 @@ def test_report_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     assert "no such folder" in capsys.readouterr().err
     assert cli.main(["report", str(tmp_path)]) == 2
     assert "not a results folder" in capsys.readouterr().err
+
+
+def test_the_solver_table_gives_the_time_to_solution_against_the_first_solver() -> None:
+    from mpsbench.results.sections import solver_table
+
+    case = CASES.get("couette")
+    base = {"case": "couette", "l0": 5e-5}
+    records = [
+        {**base, "solver": "numba", "status": "completed", "wall_time_s": 2.0, "l2_error": 0.01},
+        {**base, "solver": "implicit", "status": "completed", "wall_time_s": 3.0,
+         "l2_error": 0.02},
+        {**base, "l0": 2.5e-5, "solver": "numba", "status": "completed", "wall_time_s": 4.0,
+         "l2_error": 0.005},
+        # stopped early: its wall time is no time to solution
+        {**base, "l0": 2.5e-5, "solver": "implicit", "status": "diverged", "wall_time_s": 1.0,
+         "l2_error": None},
+    ]
+    table = solver_table(case, records)
+    ratio = table["time to solution [implicit / numba]"]
+    assert ratio.loc[5e-5] == 1.5
+    assert ratio.isna().loc[2.5e-5]
+    assert table.loc[5e-5, "wall_time_s [numba]"] == 2.0

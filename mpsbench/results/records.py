@@ -207,6 +207,7 @@ def execute_task(task: Task, outdir: str, env: dict[str, Any]) -> dict[str, Any]
             n_steps=sum(r.n_steps for r in results),
             n_solver_runs=len(statuses),
         )
+        record.update(solver_counters(results))
         record.update({k: _plain(v) for k, v in out.metrics.items()})
         arrays = {**out.arrays, **frame_arrays(results)}
     except Exception as exc:  # noqa: BLE001 - a broken case or solver is recorded, not fatal
@@ -222,6 +223,28 @@ def execute_task(task: Task, outdir: str, env: dict[str, Any]) -> dict[str, Any]
         _atomic_npz(runs / f"{task.run_id}.npz", arrays)
     atomic_write_text(runs / f"{task.run_id}.json", json.dumps(record, indent=1, default=_plain))
     return record
+
+
+SOLVER_COUNTER_PREFIX = "linear_"
+"""Solver counters whose names start with this are record columns (the semi-implicit
+backend's linear solves, docs/columns.md): summed over the record's solver runs, or the largest
+when the name ends in ``_max``.  Backends without them add no columns."""
+
+
+def solver_counters(results: Sequence[Any]) -> dict[str, float]:
+    """The record columns of the solver counters of ``results`` (:data:`SOLVER_COUNTER_PREFIX`)."""
+    out: dict[str, float] = {}
+    for r in results:
+        for name, value in getattr(r, "counters", {}).items():
+            if not name.startswith(SOLVER_COUNTER_PREFIX):
+                continue
+            v = float(value)
+            if name.endswith("_max"):
+                out[name] = max(out.get(name, v), v)
+            else:
+                out[name] = out.get(name, 0.0) + v
+    return {k: round(v, 6) if k.endswith("_s") else int(v) if "residual" not in k else v
+            for k, v in out.items()}
 
 
 def _solver_commit(solver: str) -> str | None:

@@ -101,9 +101,14 @@ def render_case(case: Case, records: list[dict[str, Any]], folder: Path) -> Case
 
 
 def solver_table(case: Case, records: list[dict[str, Any]]) -> pd.DataFrame:
-    """The case's metrics (and throughput) per parameter set, one column per solver."""
+    """The case's metrics (and throughput, wall time) per parameter set, one column per solver,
+    and the time to solution of each solver against the first: ``wall_time_s`` ratio (every
+    solver ran the same parameter set to the same simulated time, so the ratio of wall times is
+    that of times to solution; a semi-implicit backend trades many cheap steps for few costly
+    ones)."""
     df = pd.DataFrame.from_records(records)
-    metrics = [m for m in [*case.metrics, "particle_steps_per_s"] if m in df.columns]
+    metrics = [m for m in [*case.metrics, "particle_steps_per_s", "wall_time_s"]
+               if m in df.columns]
     if df.empty or not metrics:
         return pd.DataFrame()
     varying = [p.name for p in case.params
@@ -113,6 +118,20 @@ def solver_table(case: Case, records: list[dict[str, Any]]) -> pd.DataFrame:
     table = table[~table.index.duplicated()]
     wide = pd.DataFrame(table.unstack("solver"))
     wide.columns = pd.Index([f"{col[0]} [{col[1]}]" for col in wide.columns])
+    solvers = solver_order(records)
+    if "wall_time_s" in metrics and "status" in df.columns and len(solvers) > 1:
+        # a run that diverged or failed stopped early: its wall time is no time to solution
+        status = df.set_index([*key, "solver"])["status"]
+        done = pd.DataFrame(status[~status.index.duplicated()].unstack("solver")) == "completed"
+
+        def solved(solver: str) -> pd.Series:
+            wall = pd.to_numeric(wide[f"wall_time_s [{solver}]"], errors="coerce")
+            return wall.where(done[solver].reindex(wall.index, fill_value=False) & (wall > 0))
+
+        for other in solvers[1:]:
+            if f"wall_time_s [{other}]" in wide.columns and f"wall_time_s [{solvers[0]}]" in wide:
+                ratio = solved(other) / solved(solvers[0])
+                wide[f"time to solution [{other} / {solvers[0]}]"] = ratio.round(3)
     return wide
 
 

@@ -197,9 +197,8 @@ class SchemeSolver(SolverBase):
         if rows is not None:  # (without viscosity the row sums are not needed either)
             self.rho_lap = 2.0 * rows
         self._wrap()
-        # 3: number density at r*, equation of state, free surface
-        self._update_neighbours()
-        self._density_pressure(self.eos)
+        # 3: number density at r*, pressure (here the equation of state), free surface
+        self._pressure_step(dt, ph)
         # 4-5: corrector without dummy particles, collision on u* + u', u += du
         collision = (ph.collision_distance * self.l0, ph.restitution) if ph.collision else None
         self._correct(-(dt / ph.rho0), collision)
@@ -212,6 +211,13 @@ class SchemeSolver(SolverBase):
         # 7: wrap, open boundaries
         self._wrap()
         self._open_boundaries(dt)
+
+    def _pressure_step(self, dt: float, ph: FlowPhysics) -> None:
+        """Step 3 at r*: the number density, the pressure and the free-surface flags.  WC-MPS
+        takes the pressure from the equation of state; the semi-implicit scheme
+        (:mod:`mpsbench.run.implicit_scheme`) solves a pressure Poisson equation instead."""
+        self._update_neighbours()
+        self._density_pressure(self.eos)
 
     def _wrap(self) -> None:
         if self.box.any_periodic:
