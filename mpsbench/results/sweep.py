@@ -4,9 +4,10 @@ per run (:mod:`mpsbench.results.records`).
 A run is done when a record of the same run -- the same identity hash (:mod:`.identity`): case,
 solver and full parameter set, whatever the record's file is called -- exists in its folder; it
 is skipped unless ``force`` (or ``retry`` says so).  A record file that cannot be read counts as
-not done: the run runs again and its new record replaces the broken file.  Failed and diverged
-runs are recorded with their reason and the sweep goes on.  Runs execute on an executor
-(:mod:`.executors`): worker processes (``jobs``), in-process (``jobs=1``) or a dask cluster.
+not done: the run runs again and its new record replaces the broken file.  Failed, diverged,
+unsupported, timed-out and crashed runs are recorded with their reason and the sweep goes on.
+Runs execute on an executor (:mod:`.executors`): supervised worker processes (``jobs``),
+in-process (``jobs=1``) or a dask cluster.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ def print_progress(stream: Any = None) -> ProgressFn:
         elapsed = time.perf_counter() - t0
         print(f"[{done}/{total} {elapsed:6.0f}s] {state:<9} {record['run_id']}{took}",
               file=stream, flush=True)
-        if record.get("status") in ("failed", "diverged") and not skipped:
+        if record.get("status") not in ("completed", None) and not skipped:
             print(f"    reason: {record.get('reason', '')}", file=stream, flush=True)
 
     return report
