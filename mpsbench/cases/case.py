@@ -80,6 +80,9 @@ class Case:
     compare: dict[str, tuple[str, float]] = {}
     # The table shown in summary.md and first in index.html (default: the first of ``tables``).
     headline: str = ""
+    # The accuracy metrics of the cross-code table (:mod:`mpsbench.results.cross_code`: MPS
+    # backends and an outside code side by side; default: the first three of ``metrics``).
+    accuracy: tuple[str, ...] = ()
     # Where the case comes in reports and in ``validate all`` (lower first; equal: by name).
     # The built-ins use 10, 20, ...; a plugin case without one comes after them.
     order: float = 1000.0

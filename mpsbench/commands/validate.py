@@ -367,6 +367,8 @@ def print_verdicts(sections: list[CaseSection]) -> None:
             r = s.rendered
             print(f"{verdict(r.passed and not sec.error)} {sec.name} [{s.solver}]: "
                   f"{len(r.records)} runs, {r.completed} completed")
+            if r.note:
+                print(f"  ({r.note})")
             for line in check_lines(r.checks):
                 print("  " + line)
             for why in r.failures:

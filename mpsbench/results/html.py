@@ -166,6 +166,8 @@ def rendered_html(r: Rendered, *, checks: bool = True) -> list[str]:
     out: list[str] = []
     if r.failures and checks:
         out.append(f'<p class="error">Fails: {esc("; ".join(r.failures))}.</p>')
+    if r.note:
+        out.append(f'<p class="meta">{esc(r.note)}.</p>')
     bad = [x for x in r.records if x.get("status") != "completed"]
     if bad:
         out.append(f"<p>{len(bad)} run(s) did not complete:</p><ul>")
@@ -194,12 +196,16 @@ def combined_html(sec: CaseSection) -> list[str]:
     """With several solvers: the metrics side by side and the case's all-solver figures."""
     figures = sec.combined.figures if sec.combined is not None else []
     has_table = sec.by_solver is not None and not sec.by_solver.empty
-    if not figures and not has_table:
+    has_cross = sec.cross_code is not None and not sec.cross_code.empty
+    if not figures and not has_table and not has_cross:
         return []
     out = [f'<section class="solver" id="{anchor(sec.name, "all-solvers")}">',
            "<h3>all solvers compared</h3>"]
     if sec.by_solver is not None and has_table:
         out += ["<h4>Metrics by solver</h4>", table_html(sec.by_solver)]
+    if sec.cross_code is not None and has_cross:
+        out += ["<h4>Cross-code: MPS backends and outside codes</h4>",
+                f"<p>{esc(sec.cross_code_caption)}</p>", table_html(sec.cross_code, index=False)]
     if figures:
         out += ["<h4>Figures (all solvers)</h4><div>", *[image_html(f) for f in figures], "</div>"]
     return out + ["</section>"]

@@ -116,6 +116,9 @@ class Task:
     max_steps: int | None = None
     max_wall_s: float | None = None
     isolate: bool = False
+    # case parameters that do not apply to the solver (it ignores what they set): at their
+    # defaults in ``params``, recorded in the ``not_applicable`` column
+    not_applicable: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not self.run_hash:
@@ -233,6 +236,7 @@ def base_record(task: Task) -> dict[str, Any]:
     return {
         "case": task.case, **solver_columns(task.solver), "solver_version": "",
         "tier": task.tier, "run_id": task.run_id, HASH_COLUMN: task.run_hash, **task.params,
+        **({"not_applicable": ",".join(task.not_applicable)} if task.not_applicable else {}),
     }
 
 
