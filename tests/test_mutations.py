@@ -10,6 +10,8 @@ the table.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from mpsbench.testing import check_solver
@@ -67,3 +69,65 @@ def test_against_reference_tells_the_mutant_apart(mutant: type) -> None:
     assert want <= differ, f"{mutant.name}: agrees on {sorted(want - differ)}"
     if not want:  # the time-step bugs: with a fixed dt the step itself is the reference's
         assert not differ, f"{mutant.name}: differs on {sorted(differ)}"
+
+
+# The smoke-tier runs that show each mutant to ``mpsbench compare`` (the committed baseline's
+# records of those runs; the mutant stands in for the reference backend, as a bug shipped in a
+# backend would): case and the parameters that pick the runs out of the smoke plan.
+KO_SMOKE = {"geometry": "koshizuka-oka", "l0": 0.0146}
+CAUGHT_BY_SMOKE: dict[type, tuple[str, dict[str, object]]] = {
+    mutants.LaplacianTimes11: ("couette", {"l0": 5e-05, "laplacian": "xu-jin",
+                                           "wall_velocity": "prescribed", "drift": 0.0}),
+    mutants.Pgm1JPlus: ("dam-break", {**KO_SMOKE, "variant": "wc-mps", "gradient": "pgm1"}),
+    mutants.Pgm23Symmetric: ("dam-break", {**KO_SMOKE, "variant": "wc-mps",
+                                           "gradient": ("pgm2", "pgm3")}),
+    mutants.WallsOutOfDensity: ("dam-break", {**KO_SMOKE, "variant": "wc-mps",
+                                              "gradient": "pgm1"}),
+    mutants.StableDtTimes2: ("dam-break", {**KO_SMOKE, "variant": "wc-mps", "gradient": "pgm1"}),
+    mutants.StableDtTimes2Unfixed: ("dam-break", {**KO_SMOKE, "variant": "wc-mps",
+                                                  "gradient": "pgm1"}),
+    mutants.GravityTwice: ("dam-break", {**KO_SMOKE, "variant": "wc-mps", "gradient": "pgm1"}),
+    mutants.StabilizedSurface: ("dam-break", {**KO_SMOKE, "variant": "iwc-mps"}),
+    mutants.ShortPeriod: ("couette", {"drift": ("> 0",)}),
+}
+
+
+def _picks(params: dict[str, object], want: dict[str, object]) -> bool:
+    for key, value in want.items():
+        have = params.get(key)
+        if value == ("> 0",):
+            if not (isinstance(have, float) and have > 0):
+                return False
+        elif isinstance(value, tuple):
+            if have not in value:
+                return False
+        elif have != value:
+            return False
+    return True
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mutant", mutants.MUTANTS, ids=lambda m: m.name)
+def test_smoke_and_compare_catch_every_mutant(mutant: type, tmp_path: Path) -> None:
+    from mpsbench.cases import get_case
+    from mpsbench.results.compare import compare, load_results
+    from mpsbench.results.sweep import plan, run_tasks
+    from mpsbench.run.protocol import SOLVERS
+
+    name, want = CAUGHT_BY_SMOKE[mutant]
+    tasks = [t for t in plan(get_case(name), ["reference"], "smoke") if _picks(t.params, want)]
+    assert tasks, f"no smoke run of {name} matches {want}"
+    real = SOLVERS.get("reference")
+    SOLVERS.register("reference", mutant, replace=True)
+    try:
+        records = run_tasks(tasks, tmp_path, jobs=1)
+    finally:
+        SOLVERS.register("reference", real, replace=True)
+    baseline = [r for r in load_results(BASELINE) if r["case"] == name]
+    cmp = compare(baseline, records)
+    assert cmp.matched == len(tasks), "the baseline lacks these smoke runs: refresh it"
+    assert cmp.regressions, f"{mutant.name}: no regression in {[t.run_id for t in tasks]}"
+    print(mutant.name, [(c.record, c.metric, c.baseline, c.current) for c in cmp.regressions])
+
+
+BASELINE = Path(__file__).resolve().parents[1] / "validations" / "baselines" / "smoke"

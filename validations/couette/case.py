@@ -20,6 +20,11 @@ simulated gap is L + l0 and the profile is off by about l0/(2L) relative (3 % at
 error of the geometry, not of the Laplacian.  ``mirror`` reflects boundary velocities through
 the plate line and suits both placements.
 
+``drift`` adds a uniform x velocity to the fluid and both plates: by Galilean invariance the
+profile relative to it is the same (the metrics subtract it), while every particle crosses the
+periodic x edges; the smoke tier's drift run holds a backend's periodic wrap (its errors equal
+the run without drift to round-off).
+
 The flow is one-dimensional: every fluid row keeps one velocity, so the periodic strip is only
 as wide as the neighbour search allows (2 (r_e + l0/2) + l0) and u(y) is the mean over each row
 (:class:`mpsbench.run.probes.LayerAverage`).  Gravity is off, c0 = 10 U (docs/method.md: c0 >=
@@ -71,7 +76,8 @@ L = 1.0e-3  # m, gap between the plates
 NU = 1.0e-6  # m^2/s
 RHO = 1000.0  # kg/m^3
 U = 1.25e-5  # m/s, speed of the upper plate
-C0 = 10.0 * U  # m/s
+C0 = 10.0 * U  # m/s (without drift)
+SMOKE_DRIFT = 4.0e-3  # m/s: 4.5e-4 m (the L/20 strip width, 9 l0) in 0.1125 s
 TIMES = (0.0225, 0.045, 0.1125)  # s, Morris et al.'s profile times
 END_TIME = TIMES[-1]
 STEADY_RUN_TIME = 0.3  # s
@@ -82,6 +88,11 @@ HEADLINE_N = 40
 BEST_MODEL, BEST_WEIGHT, BEST_RE, BEST_MAX_L2 = "xu-jin", "wf2", 3.1, 0.01
 RATE_MODELS, RATE_RE, RATE_MIN_L2 = ("khayyer-gotoh", "xu-jin-analytic"), 2.1, 0.05
 CONVERGING_MODELS, MIN_REDUCTION = ("xu-jin", "koshizuka-oka"), 1.5
+
+
+def sound_speed(params: dict[str, Any]) -> float:
+    """c0 = 10 x the largest speed, U + drift (docs/method.md: c0 >= 10 U_max)."""
+    return 10.0 * (U + float(params.get("drift", 0.0)))
 
 
 def time_key(t: float) -> str:
@@ -134,6 +145,9 @@ class CouetteCase(Case):
         Param("jitter", 0.0, "uniform random displacement of the fluid particles", unit="l0",
               minimum=0.0, maximum=0.3),
         Param("seed", 1, "seed of the jitter", kind=int, minimum=0),
+        Param("drift", 0.0, "uniform x velocity added to the fluid and both plates (Galilean "
+              "invariance: the profile relative to it is unchanged, while particles cross the "
+              "periodic edges); c0 = 10 (U + drift)", unit="m/s", minimum=0.0, maximum=0.1),
     )
     tiers = {
         # seconds: L/20 with both wall treatments, plus the headline cell at L/40
@@ -142,6 +156,9 @@ class CouetteCase(Case):
              "l0": [L / 20], "wall_velocity": ["prescribed", "mirror"], "dt_check": [True]},
             {"laplacian": ["xu-jin"], "weight": ["wf2"], "re_ratio": [3.1], "l0": [L / 40],
              "steady": [False]},
+            # periodic crossing: every particle crosses the x edges about once by t = 0.1125 s
+            {"laplacian": ["xu-jin"], "weight": ["wf2"], "re_ratio": [3.1], "l0": [L / 20],
+             "steady": [False], "drift": [SMOKE_DRIFT]},
         ],
         # the full model x WF x radius grid at L/20 and L/40 (steady state at r_e/l0 = 3.1),
         # and the mirror treatment at r_e/l0 = 3.1
@@ -196,6 +213,7 @@ class CouetteCase(Case):
         "n_rows": ("equal", 0.0),
     }
     headline = f"l2_error_t0.1125_L-{HEADLINE_N}_prescribed"
+    accuracy = ("l2_error", "l2_error_steady", "linf_error")
 
     # ------------------------------------------------------------------ running
     def build(self, params: dict[str, Any]) -> tuple[Problem, np.ndarray]:
@@ -229,12 +247,17 @@ class CouetteCase(Case):
             jitter(p, params["jitter"] * l0, int(params["seed"]), where=p.kind == Kind.FLUID)
         margin = (n_dummy + 2) * l0
         box = Box((0.0, -margin), (width, L + margin), (True, False))
-        physics = FlowPhysics(rho0=RHO, nu=NU, gravity=(0.0, 0.0), c0=C0,
+        drift = float(params["drift"])
+        if drift:
+            p.vel[:, 0] += drift  # fluid and both plates
+        physics = FlowPhysics(rho0=RHO, nu=NU, gravity=(0.0, 0.0), c0=sound_speed(params),
                               wall_velocity=params["wall_velocity"])
         models = Models(weight=params["weight"], laplacian=params["laplacian"], re_ratio=re,
                         n0_from="lattice" if params["jitter"] > 0 else "initial")
+        motions = (WallMotion(MOVING_TAG, (U + drift, 0.0)),) + (
+            (WallMotion(0, (drift, 0.0)),) if drift else ())
         problem = Problem(p, box, l0, physics, models, TimeStepping(c_nu=params["c_nu"]),
-                          wall_motions=(WallMotion(MOVING_TAG, (U, 0.0)),), name="couette")
+                          wall_motions=motions, name="couette")
         return problem, rows
 
     def estimate(self, params: dict[str, Any]) -> RunEstimate:
@@ -247,7 +270,8 @@ class CouetteCase(Case):
         rho = lattice_laplacian_bound(params["weight"], params["laplacian"], re) / l0**2
 
         def steps(c_nu: float, duration: float) -> int:
-            return steps_for(duration, flow_dt(l0, C0, U, 0.2, NU, c_nu, rho))
+            return steps_for(duration, flow_dt(l0, sound_speed(params), U + params["drift"],
+                                               0.2, NU, c_nu, rho))
 
         total, runs = steps(params["c_nu"], END_TIME), 1
         if params["dt_check"]:
@@ -298,7 +322,7 @@ class CouetteCase(Case):
         result = run(solver, problem, end_time=END_TIME, probes=[probe])
         if not result.ok or len(probe.values) != len(TIMES):
             return result, rows, None
-        return result, rows, np.asarray(probe.values, float)
+        return result, rows, np.asarray(probe.values, float) - params["drift"]
 
     def _steady(self, params: dict[str, Any], solver: str,
                 rows: np.ndarray) -> tuple[RunResult, np.ndarray | None]:
@@ -307,14 +331,15 @@ class CouetteCase(Case):
         problem, _ = self.build({**params, "c_nu": max(params["c_nu"], 0.5)})
         p = problem.particles
         fluid = p.kind == Kind.FLUID
-        p.vel[fluid, 0] = U * p.pos[fluid, 1] / L  # start from the exact steady profile
+        # start from the exact steady profile
+        p.vel[fluid, 0] = U * p.pos[fluid, 1] / L + params["drift"]
         l0 = problem.l0
         edges = np.concatenate([rows - 0.5 * l0, [rows[-1] + 0.5 * l0]])
         probe = LayerAverage("u", 1, list(edges), "u", at=[STEADY_RUN_TIME])
         result = run(solver, problem, end_time=STEADY_RUN_TIME, probes=[probe])
         if not result.ok or not probe.values:
             return result, None
-        return result, np.asarray(probe.values[-1], float)
+        return result, np.asarray(probe.values[-1], float) - params["drift"]
 
     # ------------------------------------------------------------------ checks
     def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
@@ -478,25 +503,29 @@ def _with_n(df: pd.DataFrame) -> pd.DataFrame:
     """Add ``n`` = L / l0 (an integer, for grouping without float trouble)."""
     if df.empty:
         return df
-    return df.assign(n=(L / df["l0"]).round().astype(int))
+    # records written before the drift parameter have no drift column: no drift
+    drift = df["drift"].fillna(0.0) if "drift" in df else 0.0
+    return df.assign(n=(L / df["l0"]).round().astype(int), drift=drift)
 
 
 def _default_walls(df: pd.DataFrame) -> pd.DataFrame:
     if df.empty:
         return df
     return df[(df["wall_velocity"] == "prescribed") & (df["wall_row"] == "on-plate")
-              & (df["jitter"] == 0)]
+              & (df["jitter"] == 0) & (df["drift"] == 0)]
 
 
 def _treatment_groups(df: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
     """Groups of one resolution and wall treatment, named like ``L-40_prescribed``."""
     out = []
-    for (n, wv, wr, jit), g in df.groupby(["n", "wall_velocity", "wall_row", "jitter"]):
+    for (n, wv, wr, jit, dr), g in df.groupby(["n", "wall_velocity", "wall_row", "jitter",
+                                               "drift"]):
         key = f"L-{n}_{wv}" + ("" if wr == "on-plate" else f"_{wr}") + (
-            "" if jit == 0 else f"_jitter-{jit:g}")
+            "" if jit == 0 else f"_jitter-{jit:g}") + ("" if dr == 0 else f"_drift-{dr:g}")
         out.append((key, g))
     order = {"prescribed": 0, "mirror": 1}
     return sorted(out, key=lambda kv: (-kv[1]["n"].iloc[0], kv[1]["jitter"].iloc[0],
+                                       kv[1]["drift"].iloc[0],
                                        kv[1]["wall_row"].iloc[0] != "on-plate",
                                        order.get(kv[1]["wall_velocity"].iloc[0], 2)))
 

@@ -171,6 +171,8 @@ TIERS: dict[str, list[Grid]] = {
     "smoke": [
         {"geometry": [KO], "variant": ["wc-mps", "iwc-mps"], "l0": [0.0146]},
         {"geometry": [LOB], "variant": ["wc-mps", "iwc-mps"], "l0": [0.025]},
+        # the other two pressure gradients (a scatter with the wrong sign moves the front)
+        {"geometry": [KO], "variant": ["wc-mps"], "l0": [0.0146], "gradient": ["pgm2", "pgm3"]},
     ],
     "quick": [
         {"geometry": [KO], "variant": ["wc-mps", "iwc-mps"], "l0": [0.0073, 0.005]},
@@ -421,6 +423,8 @@ class DamBreakCase(Case):
     metrics = METRICS
     compare = COMPARE
     headline = "surge_front_errors"
+    accuracy = ("front_rms_error", "front_mean_offset", "height_rms_error", "front_arrival_T",
+                "peak_p_sensor2", "in_band_sensor2")
 
     def expand(self, tier: str, overrides: dict[str, Any] | None = None) -> list[dict[str, Any]]:
         given = set(overrides or {})
