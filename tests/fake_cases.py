@@ -6,7 +6,9 @@ runner, so records carry real wall times and particle counts; ``ToyCounter`` nee
 holds, one that does not and one that cannot decide.
 Both have knobs (class attributes) the tests turn: ``error_scale`` multiplies the error metric
 (a model change that doubles the error), ``fail_check`` makes a check fail, ``broken_figures``
-makes the figure code raise.  :func:`only_cases` swaps the case registry for the test.
+makes the figure code raise, ``claim_margin`` decides ``ToyDiffusion``'s claim (its rule:
+xu-jin's error <= margin x koshizuka-oka's; 0 refutes it).  :func:`only_cases` swaps the case
+registry for the test.
 """
 
 from __future__ import annotations
@@ -21,7 +23,8 @@ import numpy as np
 import pandas as pd
 from mpsbench.solvers.reference import ReferenceSolver
 
-from mpsbench.cases import CASES, Case, CaseCheck, CaseRun, Param
+from mpsbench.cases import CASES, Case, CaseCheck, CaseRun, Claim, Param
+from mpsbench.cases.refinement import SPACE, Refinement
 from mpsbench.run.protocol import SOLVERS, Status
 from mpsbench.run.runner import RunResult, run
 from mpsbench.testing.problems import diffusion_problem
@@ -46,9 +49,13 @@ class ToyDiffusion(Case):
                "peak": "max |phi| at the end [-]"}
     compare = {"peak": ("equal", 0.01)}
     headline = "errors"
+    refinements = (Refinement("n_side", ("l2_error", "peak"), SPACE, order=2.0, inverse=True),)
     error_scale = 1.0
     fail_check = False
     broken_figures = False
+    claim_margin = 1e9
+    claim = Claim("T1", "xu-jin is at least as accurate as koshizuka-oka on the toy problem.",
+                  "tests/fake_cases.py")
 
     def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
         problem = diffusion_problem(params["laplacian"], n_side=params["n_side"], value=None,
@@ -69,6 +76,16 @@ class ToyDiffusion(Case):
         detail = f"worst {worst:.3g} < {limit:g}"
         return [CaseCheck("l2 error below limit", worst < limit, detail),
                 CaseCheck("undecided check", None, "no data to decide")]
+
+    def claims(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
+        rule = f"xu-jin's l2_error <= {self.claim_margin:g} x koshizuka-oka's (same n_side)"
+        by = {r["laplacian"]: r for r in records if r.get("status") == "completed"}
+        if not {"xu-jin", "koshizuka-oka"} <= set(by):
+            return [self.claim.no_data(rule, "runs of both models")]
+        a, b = by["xu-jin"]["l2_error"], by["koshizuka-oka"]["l2_error"]
+        return [self.claim.verdict(a <= self.claim_margin * b, rule,
+                                   f"xu-jin {a:.3g}, koshizuka-oka {b:.3g}",
+                                   [by[m]["run_id"] for m in ("xu-jin", "koshizuka-oka")])]
 
     def tables(self, records: list[dict[str, Any]]) -> dict[str, Any]:
         df = pd.DataFrame(records)

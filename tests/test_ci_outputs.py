@@ -148,7 +148,8 @@ def test_junit_of_one_case(toys: object, tmp_path: Path) -> None:
     assert_schema_structure(junit)
     (suite,) = JUnitXml.fromfile(str(junit))
     assert suite.name == "toy-diffusion[reference]"
-    assert (suite.tests, suite.failures, suite.errors, suite.skipped) == (4, 0, 0, 1)
+    # two runs, two gates (one undecided) and the toy's claim (supported)
+    assert (suite.tests, suite.failures, suite.errors, suite.skipped) == (5, 0, 0, 1)
     props = {p.name: p.value for p in suite.properties()}
     assert props["solver_version"] == "1.0" and props["case"] == "toy-diffusion"
 
@@ -168,11 +169,10 @@ def test_check_outcome_follows_a_checks_kind() -> None:
     assert check_outcome(CaseCheck("a", False, "0.3 > 0.1")) == ("failed", "0.3 > 0.1")
     assert check_outcome(CaseCheck("a", None, "no data"))[0] == "skipped"
 
-    class Claim(CaseCheck):
-        kind = "claim"
-
-    outcome_, message = check_outcome(Claim("paper says", False, "0.3 > 0.1"))
+    claim = CaseCheck("paper says", False, "0.3 > 0.1", kind="claim")
+    outcome_, message = check_outcome(claim)
     assert outcome_ == "skipped" and "does not gate" in message and "0.3 > 0.1" in message
+    assert check_outcome(claim, strict_claims=True) == ("failed", "0.3 > 0.1")
 
 
 def test_junit_tree_of_a_section_without_records() -> None:
@@ -262,7 +262,7 @@ def test_step_summary_appended_by_validate_and_compare(
     text = summary.read_text()
     assert text.startswith("earlier step\n")  # appended, not replaced
     assert "## mpsbench validate (all, tier smoke): FAIL (1/2 cases pass)" in text
-    assert "### toy-diffusion: FAIL" in text and "check failed: l2 error below limit" in text
+    assert "### toy-diffusion: FAIL" in text and "gate failed: l2 error below limit" in text
     assert "**FAIL** l2 error below limit" in text
     assert "| toy-counter" in text  # the overview table
     assert "## mpsbench compare: no regression" in text

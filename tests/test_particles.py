@@ -8,6 +8,7 @@ import pytest
 from mpsbench.physics.neighbours import build_pairs
 from mpsbench.physics.operators import lattice_constants, number_density
 from mpsbench.physics.particles import (
+    UNTAGGED,
     Box,
     Kind,
     Particles,
@@ -105,6 +106,15 @@ def test_concat_fills_missing_fields_with_zeros() -> None:
     assert c.n == 5
     np.testing.assert_array_equal(c.fields["phi"], [1.0, 2.0, 0.0, 0.0, 0.0])
     np.testing.assert_array_equal(c.kind, [0, 0, 2, 2, 2])
+
+
+def test_concat_leaves_parts_without_a_wall_tag_untagged() -> None:
+    # zero is a real tag: a part without the field must not join the walls tagged 0
+    walls = block(0.0, 0.0, 2, 1, 1.0, Kind.WALL)
+    walls.fields["wall_tag"] = np.zeros(2)
+    reservoir = block(0.0, 5.0, 3, 1, 1.0, Kind.INFLOW)
+    c = Particles.concat([walls, reservoir])
+    np.testing.assert_array_equal(c.fields["wall_tag"], [0.0, 0.0, UNTAGGED, UNTAGGED, UNTAGGED])
 
 
 # --------------------------------------------------------------------------- builders

@@ -71,22 +71,25 @@ def test_no_inflow_backend_gets_unsupported_water_jet_and_validate_all_passes(
 
 
 def test_unsupported_runs_do_not_count_against_a_case_check(tmp_path: Path) -> None:
-    """Dam break's "every run completes" holds the runs that were made: the iwc-mps runs a
-    backend without stabilization cannot make are unsupported, not divergences."""
-    from mpsbench.validations.dam_break.report import checks
+    """Dam break's "every run of the model grid completes" holds the runs that were made: the
+    iwc-mps runs a backend without stabilization cannot make are unsupported, not
+    divergences."""
+    from mpsbench.validations.dam_break.analysis import gates
+
+    from mpsbench.results.case_report import render_case_outputs
 
     ko = {"geometry": "koshizuka-oka"}
     made = [{**ko, "run_id": "a", "status": "completed", "variant": "wc-mps", "l0": 0.01,
              "front_rms_error": 0.2}]
     refused = [{**ko, "run_id": "b", "status": "unsupported", "variant": "iwc-mps", "l0": 0.005,
                 "reason": "feature 'stabilization' not supported"}]
-    from mpsbench.results.case_report import render_case_outputs
-
+    name = "every run of the model grid completes (no divergence)"
     r = render_case_outputs(get_case("dam-break"), made + refused, tmp_path / "db")
     assert r.passed, r.failures
-    first = {c.name: c for c in r.checks}["every run completes (no divergence)"]
+    first = {c.name: c for c in r.checks}[name]
     assert first.passed and first.detail.startswith("1/1")
-    assert checks(made + refused)[0].passed is False  # the case's own rule, given every record
+    # the case's own rule, given every record, would count the refusal
+    assert {c.name: c for c in gates(made + refused)}[name].passed is False
     assert "1 of 2 runs unsupported" in r.note
 
 
@@ -95,8 +98,10 @@ def test_an_own_kernel_backend_runs_each_physical_set_once(fakes: None) -> None:
     mps = plan(case, ["reference"], "quick")
     own = plan(case, ["fake-own-kernel"], "quick")
     assert len(mps) > 60
-    # l0 x {steady off, steady on, mirror} at the default model
-    assert len(own) == 6
+    # L/20 and L/40 x {steady off, steady on, mirror} at the default model, and the L/80 run
+    # of the refinement grid (its c_nu refinements collapse: c_nu does not apply)
+    assert len(own) == 7
+    assert sorted({round(1e-3 / t.params["l0"]) for t in own}) == [20, 40, 80]
     assert {t.params["laplacian"] for t in own} == {case.param("laplacian").default}
     assert {t.params["re_ratio"] for t in own} == {case.param("re_ratio").default}
     assert set(own[0].not_applicable) == {"laplacian", "weight", "re_ratio", "c_nu"}

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
+from mpsbench.validations.couette import analysis as coa
 from mpsbench.validations.couette import case as cou
 
 from mpsbench import cli
@@ -107,11 +108,19 @@ def test_l0_must_divide_the_gap() -> None:
 
 def test_tiers() -> None:
     quick = pd.DataFrame(cou.CASE.expand("quick"))
-    grid = quick[quick["wall_velocity"] == "prescribed"]
+    main = quick[quick["c_nu"] == 0.25]
+    grid = main[(main["wall_velocity"] == "prescribed") & (main["l0"] >= L / 40)]
     assert len(grid) == 4 * 2 * 5 * 2  # model x WF x radius x {L/20, L/40}
-    assert set((L / quick["l0"]).round()) == {20, 40}
+    assert set((L / main["l0"]).round()) == {20, 40, 80}
+    # the refinement sets of the headline cell: L/20, L/40, L/80 and c_nu 0.25, 0.125, 0.0625
+    cell = quick[(quick["laplacian"] == "xu-jin") & (quick["weight"] == "wf2")
+                 & (quick["re_ratio"] == 3.1) & (quick["wall_velocity"] == "prescribed")]
+    assert sorted(set((L / cell[cell["c_nu"] == 0.25]["l0"]).round())) == [20, 40, 80]
+    assert sorted(set(cell[cell["l0"] == L / 40]["c_nu"])) == [0.0625, 0.125, 0.25]
+    assert len(quick) == len(grid) + 8 * 2 + 1 + 2  # + mirror grid, L/80, two c_nu
     paper = pd.DataFrame(cou.CASE.expand("paper"))
-    assert set(paper["wall_velocity"]) == {"prescribed", "mirror"} and paper["steady"].all()
+    full = paper[(paper["c_nu"] == 0.25) & (paper["l0"] >= L / 40)]
+    assert set(paper["wall_velocity"]) == {"prescribed", "mirror"} and full["steady"].all()
     assert len(cou.CASE.expand("smoke")) <= 6
 
 
@@ -120,7 +129,7 @@ def test_tiers() -> None:
 
 def test_xu_jin_wf2_3_1_is_below_one_percent_at_l_40() -> None:
     m = cell(laplacian="xu-jin", weight="wf2", re_ratio=3.1, l0=L / 40)
-    assert m["l2_error"] < cou.BEST_MAX_L2
+    assert m["l2_error"] < coa.BEST_MAX_L2
     assert m["l2_error"] == m["l2_error_t0.1125"]
     assert m["l2_error_t0.0225"] > m["l2_error_t0.045"] > m["l2_error"]  # early profiles: harder
     assert m["max_v"] < 1e-9  # the flow stays one-dimensional
@@ -129,23 +138,23 @@ def test_xu_jin_wf2_3_1_is_below_one_percent_at_l_40() -> None:
 
 def test_rate_error_models_at_l_20() -> None:
     """khayyer-gotoh and xu-jin-analytic diffuse momentum too fast (cheap version, L/20)."""
-    for model in cou.RATE_MODELS:
+    for model in coa.RATE_MODELS:
         assert cell(laplacian=model, weight="wf2", re_ratio=2.1, l0=L / 20)["l2_error"] > 0.05
 
 
-@pytest.mark.parametrize("model", cou.RATE_MODELS)
+@pytest.mark.parametrize("model", coa.RATE_MODELS)
 @pytest.mark.parametrize("weight", ["wf1", "wf2"])
 def test_rate_error_models_above_five_percent_at_l_40(model: str, weight: str) -> None:
-    m = cell(laplacian=model, weight=weight, re_ratio=cou.RATE_RE, l0=L / 40)
-    assert m["l2_error"] > cou.RATE_MIN_L2
+    m = cell(laplacian=model, weight=weight, re_ratio=coa.RATE_RE, l0=L / 40)
+    assert m["l2_error"] > coa.RATE_MIN_L2
     assert m["wall_error_share"] < 0.1  # a diffusion-rate error lives in the interior
 
 
-@pytest.mark.parametrize("model", cou.CONVERGING_MODELS)
+@pytest.mark.parametrize("model", coa.CONVERGING_MODELS)
 def test_refinement_reduces_the_error(model: str) -> None:
     coarse = cell(laplacian=model, weight="wf2", re_ratio=3.1, l0=L / 20)["l2_error"]
     fine = cell(laplacian=model, weight="wf2", re_ratio=3.1, l0=L / 40)["l2_error"]
-    assert coarse / fine >= cou.MIN_REDUCTION
+    assert coarse / fine >= coa.MIN_REDUCTION
 
 
 def test_mirror_walls_hold_the_steady_profile_and_prescribed_ones_nearly() -> None:
@@ -193,7 +202,9 @@ def test_smoke_tier_end_to_end(tmp_path: Path) -> None:
     assert {"profiles_L-40_prescribed.png", "error_profiles_L-40_prescribed.png",
             "error_vs_re_L-40.png"} <= figures
     checks = json.loads((out / "checks.json").read_text())
-    assert checks and all(c["passed"] is not False for c in checks)
+    gates = [c for c in checks if c["kind"] == "gate"]
+    assert gates and all(c["passed"] is not False for c in gates)
+    assert {c["claim"] for c in checks if c["kind"] == "claim"} == {"C2", "C3", "C8"}
     report = (out / "report.md").read_text()
     assert "Where the error sits" in report and "Steady state" in report
 
@@ -203,7 +214,7 @@ def test_rerun_skips_every_run_and_force_redoes_them(
 ) -> None:
     args = ("--tier", "smoke", "--set", "laplacian=xu-jin", "--set", "l0=5e-5",
             "--set", "steady=false", "--set", "dt_check=false", "--set", "wall_velocity=prescribed",
-            "--out", str(tmp_path))
+            "--set", "drift=0", "--out", str(tmp_path))
     assert validate(*args) == 0
     first = capsys.readouterr().err
     assert first.count("] completed") == 1 and "] skip" not in first

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
+from mpsbench.validations.diffusion import analysis as dia
 from mpsbench.validations.diffusion import case as dif
 
 from mpsbench import cli
@@ -67,14 +68,24 @@ def test_l0_must_divide_the_unit_square() -> None:
 
 
 def test_tiers_cover_the_grid_of_the_issue() -> None:
-    paper = pd.DataFrame(dif.CASE.expand("paper"))
+    every = pd.DataFrame(dif.CASE.expand("paper"))
+    paper = every[every["dt"] == dif.DT]
     assert len(paper) == 4 * 2 * 5 * 3 * 3
     assert set(paper["re_ratio"]) == {2.1, 2.5, 3.1, 3.5, 4.0}
     assert set(paper["jitter"]) == {0.0, 0.05, 0.1}
     assert sorted(paper["l0"]) [0] == 1 / 80 and paper["dt_check"].all()
+    # and the dt refinement of the headline cells: dt/2, dt/4 at l0 = 1/40 (4 models)
+    assert sorted(set(every["dt"])) == [dif.DT / 4, dif.DT / 2, dif.DT]
+    assert len(every) == len(paper) + 8
     quick = pd.DataFrame(dif.CASE.expand("quick"))
-    lattice = quick[(quick["jitter"] == 0) & (quick["l0"] == 1 / 40)]
+    lattice = quick[(quick["jitter"] == 0) & (quick["l0"] == 1 / 40) & (quick["dt"] == dif.DT)]
     assert len(lattice) == 4 * 2 * 5  # the full model x WF x radius grid at l0 = 1/40
+    # three spacings and three time steps for every model at WF2, r_e/l0 = 3.1
+    cell = quick[(quick["weight"] == "wf2") & (quick["re_ratio"] == 3.1) & (quick["jitter"] == 0)]
+    for model in ("koshizuka-oka", "khayyer-gotoh", "xu-jin", "xu-jin-analytic"):
+        runs = cell[cell["laplacian"] == model]
+        assert sorted(set(runs[runs["dt"] == dif.DT]["l0"])) == [1 / 80, 1 / 40, 1 / 20]
+        assert len(set(runs[runs["l0"] == 1 / 40]["dt"])) == 3
     assert len(dif.CASE.expand("smoke")) <= 8
 
 
@@ -90,7 +101,7 @@ def test_consistent_models_are_within_two_percent_at_l0_1_40(
 ) -> None:
     """The largest errors of xu-jin and koshizuka-oka in the quick grid (WF1, r_e/l0 = 4)."""
     m = cell(laplacian=laplacian, weight=weight, re_ratio=re_ratio, l0=1 / 40)
-    assert m["l2_error"] < dif.ACCURATE_MAX_L2
+    assert m["l2_error"] < dia.ACCURATE_MAX_L2
     assert m["decay_ratio"] == pytest.approx(1.0, abs=0.03)
 
 
@@ -98,7 +109,7 @@ def test_khayyer_gotoh_over_diffuses() -> None:
     """Its smallest error in the quick grid (WF1, r_e/l0 = 4) is still above 30 %; the decay
     rate is the docs/method.md lattice ratio (1.761 for x^2 at WF1, 4.0)."""
     m = cell(laplacian="khayyer-gotoh", weight="wf1", re_ratio=4.0, l0=1 / 40)
-    assert m["l2_error"] > dif.OVERDIFFUSING_MIN_L2
+    assert m["l2_error"] > dia.OVERDIFFUSING_MIN_L2
     assert m["decay_ratio"] == pytest.approx(1.73, abs=0.05)
 
 
@@ -139,7 +150,9 @@ def test_smoke_tier_end_to_end(tmp_path: Path) -> None:
     assert {"error_maps.png", "convergence_jitter-0.png", "error_vs_re_l0-1_40.png"} <= set(
         figures)
     checks = json.loads((out / "checks.json").read_text())
-    assert checks and all(c["passed"] is not False for c in checks)
+    gates = [c for c in checks if c["kind"] == "gate"]
+    assert gates and all(c["passed"] is not False for c in gates)
+    assert {c["claim"] for c in checks if c["kind"] == "claim"} == {"C1", "C8", "C9"}
     report = (out / "report.md").read_text()
     assert "## Findings" in report and "best xu-jin" in report
 

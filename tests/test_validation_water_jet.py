@@ -298,10 +298,11 @@ def test_case_declares_the_study_grid_and_the_record_columns() -> None:
                   and r["weight"] == "wf2" and r["b"] / r["l0"] == pytest.approx(20.0)
                   and r["collision_distance"] == 0.0 and r["stabilization_walls"]
                   and r["alpha_s"] == 0.01]
-    assert len(acceptance) == 1
+    # the acceptance run, and the same at half the time step (its dt refinement set)
+    assert sorted(r["cfl"] for r in acceptance) == [0.1, 0.2]
     # the acceptance model's trend: b/10, b/20, b/40 and alpha_s 0.0025, 0.005, 0.01 at b/20
     trend = [r for r in quick if r["stabilization"] and r["gradient"] == "pgm1"
-             and r["collision_distance"] == 0.0 and r["stabilization_walls"]]
+             and r["collision_distance"] == 0.0 and r["stabilization_walls"] and r["cfl"] == 0.2]
     assert {round(r["b"] / r["l0"]) for r in trend if r["alpha_s"] == 0.01} == {10, 20, 40}
     assert {r["alpha_s"] for r in trend if round(r["b"] / r["l0"]) == 20} == {
         0.0025, 0.005, 0.01}
@@ -328,8 +329,9 @@ def test_validate_cli_short_run(tmp_path) -> None:  # noqa: ANN001
     code = main(["validate", "water-jet", "--tier", "smoke", "--out", str(out),
                  "--set", "t_end=1.5", "--set", "t_window=0.5"])
     assert code == 0
-    df = _check_outputs(out, 2)
+    df = _check_outputs(out, 3)  # off and on, and on at half the time step (cfl 0.1)
     assert set(df["stabilization"]) == {True, False}
+    assert sorted(df["cfl"]) == [0.1, 0.2, 0.2]
     assert (df["penetrations"] >= 0).all()
     assert df["cp_stagnation"].notna().all()
 
@@ -339,7 +341,7 @@ def test_validate_cli_smoke_tier(tmp_path) -> None:  # noqa: ANN001
     """The smoke tier as CI runs it (about a minute)."""
     out = tmp_path / "smoke"
     assert main(["validate", "water-jet", "--tier", "smoke", "--out", str(out)]) == 0
-    df = _check_outputs(out, 2)
+    df = _check_outputs(out, 3)
     on = df[df["stabilization"]].iloc[0]
     assert on["penetrations"] == 0
 

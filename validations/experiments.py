@@ -202,3 +202,33 @@ def lobovsky_bands() -> dict[str, FloatArray]:
         "lo": mbar_to_pstar(d["p2.5"]),
         "hi": mbar_to_pstar(d["p97.5"]),
     }
+
+
+# ---------------------------------------------------------------- data uncertainty u_D
+# (docs/method.md section 9).  Martin & Moyce tabulate the front at marks: every Z is an odd
+# multiple of 1/9 (marks a/9 = 0.25 in apart on a = 2.25 in) and every H* a multiple of 1/18
+# (marks H/18 = 0.25 in apart): the times were read when the front or the column top passed a
+# mark.  The position between marks is known to half a mark spacing, taken as u_D (about 95 %
+# coverage of a reading error spread uniformly over the spacing).
+MARTIN_MOYCE_U_Z = 1.0 / 18.0  # half of the 1/9 mark spacing in Z = z/a
+MARTIN_MOYCE_U_H = 1.0 / 36.0  # half of the 1/18 mark spacing in H* = h/H
+
+
+def martin_moyce_u_T(z: float) -> float:
+    """u_D of the experimental T at which the front reaches Z = ``z``: the position reading
+    uncertainty carried into time through the local slope dT/dZ of the table."""
+    d = load("martin_moyce_1952_surge_front")
+    T, Z = d["T"], d["Z"]
+    k = int(np.clip(np.searchsorted(Z, z), 1, len(Z) - 1))
+    slope = (T[k] - T[k - 1]) / (Z[k] - Z[k - 1])
+    return float(abs(slope) * MARTIN_MOYCE_U_Z)
+
+
+def lobovsky_u_peak(sensor: int, simulated: float) -> float:
+    """u_D of a Lobovsky first-impact peak (p*): the half-width of the measured 2.5-97.5 %
+    band on the side of the simulated value (the band over 100 repeats is itself a 95 %
+    interval, the coverage of u_num)."""
+    band = lobovsky_bands()
+    k = int(np.flatnonzero(band["sensor"] == sensor)[0])
+    median = float(band["median"][k])
+    return float(band["hi"][k] - median if simulated >= median else median - band["lo"][k])

@@ -1,10 +1,14 @@
 """Declarative validation cases and their registry.
 
 A case names its parameters (with defaults, units and allowed values), its tiers (parameter
-grids), how to run one parameter set on a solver, its metrics, the checks that decide pass or
-fail, its tables and its figures.  The study machinery
+grids), how to run one parameter set on a solver, its metrics, its refinement sets (for the
+numerical uncertainty u_num, :mod:`mpsbench.cases.refinement`), its gates (``checks``: they
+decide pass or fail) and claims (``claims``: a paper's statements tested as hypotheses,
+:mod:`mpsbench.cases.checks`), its tables and its figures.  The study machinery
 (:mod:`mpsbench.results.sweep`) expands the grid
 and runs it; the reporting (:mod:`mpsbench.results.case_report`) writes the output folder.
+The shared analysis helpers a case builds its tables and checks from are
+:mod:`mpsbench.cases.analysis`.
 
 Built-in cases live in :mod:`mpsbench.validations`; plugins add cases through the
 ``mpsbench.cases`` entry-point group (the object must be a :class:`Case` instance).
@@ -16,15 +20,19 @@ import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from mpsbench.cases.checks import CaseCheck
 from mpsbench.errors import ConfigError
 from mpsbench.params import Param
 from mpsbench.registry import Registry
 from mpsbench.run.estimate import RunEstimate
 from mpsbench.run.runner import RunLimits, RunResult
+
+if TYPE_CHECKING:  # pandas is imported when a case analyses records, not when the CLI starts
+    from mpsbench.cases.refinement import NumericalUncertainty, Refinement
 
 TIERS = ("smoke", "quick", "paper")
 
@@ -42,6 +50,10 @@ STEP_FACTOR = 20
 STEP_FLOOR = 2_000
 
 
+def _signature(params: dict[str, Any]) -> tuple[tuple[str, str], ...]:
+    return tuple(sorted((k, repr(v)) for k, v in params.items()))
+
+
 @dataclass
 class CaseRun:
     """What one run of a case produced: the solver run(s), scalar metrics and arrays for plots."""
@@ -51,16 +63,14 @@ class CaseRun:
     arrays: dict[str, np.ndarray] = field(default_factory=dict)
 
 
-@dataclass
-class CaseCheck:
-    """One pass/fail decision of a case: ``passed`` is None when the data to decide is missing."""
-
-    name: str
-    passed: bool | None
-    detail: str
-
-
 Grid = dict[str, Sequence[Any]]
+
+
+class RefinementGrid(dict[str, Sequence[Any]]):
+    """A grid of a tier that exists for a refinement set (docs/method.md section 9): its runs
+    give u_num to the model grid's runs, and :meth:`Case.model_records` leaves them out of the
+    tables and comparisons across models.  Written like a grid: ``RefinementGrid(l0=[L / 80])``
+    or ``RefinementGrid({"l0": [L / 80]})``."""
 
 
 class Case:
@@ -86,6 +96,9 @@ class Case:
     # Where the case comes in reports and in ``validate all`` (lower first; equal: by name).
     # The built-ins use 10, 20, ...; a plugin case without one comes after them.
     order: float = 1000.0
+    # Refinement sets in l0 and dt of the headline metrics (docs/method.md section 9): the
+    # report gets a numerical_uncertainty table and ``uncertainty(records)`` gives u_num per run.
+    refinements: tuple[Refinement, ...] = ()
 
     # ---- parameters
     def param(self, name: str) -> Param:
@@ -101,17 +114,24 @@ class Case:
         return {p.name: p.default for p in self.params}
 
     def expand(
-        self, tier: str, overrides: dict[str, Sequence[Any]] | None = None
+        self, tier: str, overrides: dict[str, Sequence[Any]] | None = None, *, part: str = "all"
     ) -> list[dict[str, Any]]:
-        """All parameter sets of a tier; ``overrides`` replace a parameter's values in each grid."""
+        """All parameter sets of a tier; ``overrides`` replace a parameter's values in each grid.
+
+        ``part``: ``"all"``, ``"model"`` (the plain grids) or ``"refinement"`` (the
+        :class:`RefinementGrid` ones)."""
         if tier not in self.tiers:
             raise ConfigError(f"tier = {tier!r} is not allowed: one of {', '.join(self.tiers)}")
+        if part not in ("all", "model", "refinement"):
+            raise ValueError(f"part = {part!r}: one of all, model, refinement")
         overrides = overrides or {}
         for key in overrides:
             self.param(key)
         out: list[dict[str, Any]] = []
         seen: set[tuple[Any, ...]] = set()
         for grid in self.tiers[tier]:
+            if part != "all" and isinstance(grid, RefinementGrid) != (part == "refinement"):
+                continue
             merged = {k: list(v) for k, v in grid.items()}
             merged.update({k: list(v) for k, v in overrides.items()})
             keys = list(merged)
@@ -119,11 +139,27 @@ class Case:
                 params = self.defaults()
                 params.update(dict(zip(keys, combo, strict=True)))
                 params = {k: self.param(k).check(v) for k, v in params.items()}
-                sig = tuple(sorted((k, repr(v)) for k, v in params.items()))
+                sig = _signature(params)
                 if sig not in seen:
                     seen.add(sig)
                     out.append(params)
         return out
+
+    def model_records(self, records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+        """``records`` without the runs that only a :class:`RefinementGrid` of their tier asks
+        for (they feed u_num; the model grid's tables and comparisons leave them out).  Runs
+        made with ``--set`` or a study file match no refinement grid and are all kept."""
+        extra: dict[str, set[tuple[Any, ...]]] = {}
+        for tier in {str(r.get("tier")) for r in records}:
+            if tier not in self.tiers or not any(
+                    isinstance(g, RefinementGrid) for g in self.tiers[tier]):
+                extra[tier] = set()
+                continue
+            model = {_signature(p) for p in self.expand(tier, part="model")}
+            extra[tier] = {_signature(p) for p in self.expand(tier, part="refinement")} - model
+        names = [p.name for p in self.params]
+        return [r for r in records
+                if _signature({k: r.get(k) for k in names}) not in extra[str(r.get("tier"))]]
 
     # ---- to implement
     def execute(self, params: dict[str, Any], solver: str) -> CaseRun:
@@ -172,7 +208,20 @@ class Case:
         return [k for k, f in self.model_params.items() if k in names and f in ignored_fields]
 
     def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
+        """The gates: pass/fail decisions that set the exit status of ``mpsbench validate``
+        (a check returned here with ``kind="claim"`` counts as a claim)."""
         return []
+
+    def claims(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
+        """The paper's statements tested on these records (``Claim.verdict``): supported,
+        refuted or inconclusive.  They change the exit status only with --strict-claims."""
+        return []
+
+    def uncertainty(self, records: list[dict[str, Any]]) -> NumericalUncertainty:
+        """The refinement sets of ``refinements`` in ``records`` and u_num per run."""
+        from mpsbench.cases.refinement import NumericalUncertainty
+
+        return NumericalUncertainty(records, self.refinements, [p.name for p in self.params])
 
     def tables(self, records: list[dict[str, Any]]) -> dict[str, Any]:
         """Named pandas DataFrames written as CSV and Markdown."""

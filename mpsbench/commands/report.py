@@ -9,7 +9,9 @@ Every input is read before anything is written, and a record, manifest or stored
 that is unreadable, truncated or not allowed stops the command (exit 2, naming the file): no
 record is dropped from a report without a word.  The folder is locked while it is written
 (:mod:`mpsbench.results.lock`).
-Exit status: 0 rendered, 2 DIR is not a results folder, holds a broken file or is in use.
+Exit status: 0 rendered, 2 DIR is not a results folder, holds a broken file or is in use.  With
+``--strict-claims`` the exit status is the verdict, as ``mpsbench validate --strict-claims``
+would give it: 1 when a gate fails or a claim of the paper is refuted.
 """
 
 from __future__ import annotations
@@ -39,6 +41,8 @@ def register(sub: Any) -> None:
     p.add_argument("dir", help="a folder written by 'mpsbench validate'")
     p.add_argument("--from-files", action="store_true",
                    help="do not call the cases' table/figure code; reuse the files on disk")
+    p.add_argument("--strict-claims", action="store_true",
+                   help="exit 1 when a gate fails or a claim of the paper is refuted")
     p.set_defaults(func=cmd_report)
 
 
@@ -55,7 +59,13 @@ def cmd_report(args: argparse.Namespace) -> int:
 def _report(args: argparse.Namespace, out: Path) -> int:
     from mpsbench.cases import get_case
     from mpsbench.results.folder import case_folders, read_manifest, write_top_level
-    from mpsbench.results.sections import CaseSection, case_from_disk, safe_render_case, verdict
+    from mpsbench.results.sections import (
+        CaseSection,
+        case_from_disk,
+        claim_counts,
+        safe_render_case,
+        verdict,
+    )
 
     manifest = read_manifest(out)
     found = case_folders(out)
@@ -91,13 +101,20 @@ def _report(args: argparse.Namespace, out: Path) -> int:
     order = [str(e.get("name")) for e in manifest.get("cases", []) if e.get("name") in sections]
     ordered = [sections[n] for n in order] + [s for n, s in sections.items() if n not in order]
     _fill_manifest(manifest, ordered)
+    manifest["strict_claims"] = bool(args.strict_claims)
     ok = write_top_level(out, ordered, manifest, params, write_results=not single)
     for sec in ordered:
         print(f"{verdict(sec.passed)} {sec.name}" + (f": {sec.error}" if sec.error else ""))
-    print(f"{verdict(ok)}: {sum(s.passed for s in ordered)}/{len(ordered)} cases pass")
+    claims = [c for s in ordered for so in s.solvers for c in so.rendered.claims]
+    counts = f"; claims: {claim_counts(claims)}" if claims else ""
+    strict = " (--strict-claims: a refuted claim fails)" if args.strict_claims else ""
+    print(f"{verdict(ok)}: {sum(s.passed for s in ordered)}/{len(ordered)} cases pass their "
+          f"gates{counts}{strict}")
+    for c in (c for s in ordered for c in s.refuted):
+        print(f"  refuted {c.claim}: {c.name}")
     print(f"summary: {out / 'summary.md'}")
     print(f"index:   {out / 'index.html'}")
-    return 0
+    return 1 if args.strict_claims and not ok else 0
 
 
 def _fill_manifest(manifest: dict[str, Any], sections: list[CaseSection]) -> None:

@@ -6,9 +6,11 @@ index.html.  ``validate all`` plans every run of every registered case (built-in
 every ``--solver``, runs them through one pool with one progress count, and writes the results
 folder described in :mod:`mpsbench.results.folder` (default ``reports/<YYYYmmdd-HHMM>-<tier>/``).
 
-Exit status: 0 when every case passes its checks, 1 when one fails (or could not be loaded or
+Exit status: 0 when every case passes its gates, 1 when one fails (or could not be loaded or
 run), 2 on a usage error (unknown case, solver or tier, bad ``--set``, an output folder that
-cannot be written or is in use, a plan refused by the size guard).
+cannot be written or is in use, a plan refused by the size guard).  The paper's claims are
+reported with their verdicts and do not change the exit status unless ``--strict-claims``
+(then a refuted claim exits 1 too).
 """
 
 from __future__ import annotations
@@ -53,7 +55,8 @@ def register(sub: Any) -> None:
         help="run a validation case (or 'all') and write results, tables, figures and a report",
         description="Run a validation case's parameter grid (or every case's, with 'all') on one "
         "or more solvers and write a report folder. Exit status: 0 every case passes its "
-        "checks, 1 one fails, 2 usage error.",
+        "gates, 1 one fails, 2 usage error. The paper's claims get a verdict (supported, "
+        "refuted, inconclusive) and change the exit status only with --strict-claims.",
     )
     p.add_argument("case", help="case name (see 'mpsbench validate --list') or 'all'", nargs="?")
     p.add_argument("--list", action="store_true", help="list the registered cases and exit")
@@ -72,6 +75,9 @@ def register(sub: Any) -> None:
                    help="output folder (default: reports/<case>-<tier>-<time> for one case, "
                    "reports/<YYYYmmdd-HHMM>-<tier> for 'all')")
     p.add_argument("--force", action="store_true", help="re-run runs whose record already exists")
+    p.add_argument("--strict-claims", action="store_true",
+                   help="exit 1 when a claim of the paper is refuted (claims are otherwise "
+                   "findings, not failures)")
     p.add_argument("--junit-xml", default=None, metavar="PATH",
                    help="also write a JUnit XML report: one test case per run and per check "
                    "(docs/ci.md)")
@@ -200,6 +206,7 @@ def _manifest(args: argparse.Namespace, solvers: list[str], jobs: int) -> dict[s
         "command": " ".join(["mpsbench validate", args.case, "--tier", args.tier]
                             + [f"--solver {s}" for s in solvers] + [f"--jobs {jobs}"]),
         "case": args.case, "tier": args.tier, "solvers": solvers, "jobs": jobs,
+        "strict_claims": bool(args.strict_claims),
         "started": _dt.datetime.now().isoformat(timespec="seconds"),
         "environment": environment(solvers), "cases": [],
     }
@@ -236,6 +243,9 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
                              write_results=False)
         ci_outputs(args, [section], manifest)
     print_verdicts([section])
+    note = _claims_note([section], args.strict_claims)
+    if note:
+        print(note.lstrip("; "))
     print(f"report: {os.path.join(str(out), 'report.md')}")
     print(f"index:  {out / 'index.html'}")
     return 0 if ok else 1
@@ -325,7 +335,7 @@ def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
     ci_outputs(args, sections, manifest)
     print_verdicts(sections)
     print(f"{verdict(ok)}: {sum(s.passed for s in sections)}/{len(sections)} cases pass "
-          f"in {manifest['wall_s']:.0f} s")
+          f"their gates in {manifest['wall_s']:.0f} s{_claims_note(sections, args.strict_claims)}")
     print(f"summary: {out / 'summary.md'}")
     print(f"index:   {out / 'index.html'}")
     return 0 if ok else 1
@@ -357,7 +367,8 @@ def heavy_first(tasks: list[Task]) -> list[Task]:
 
 
 def print_verdicts(sections: list[CaseSection]) -> None:
-    from mpsbench.results.case_report import check_lines
+    """Plain text for the terminal: per case and solver its gates, then its claims."""
+    from mpsbench.results.case_report import plain_check_lines
     from mpsbench.results.sections import verdict
 
     for sec in sections:
@@ -369,8 +380,20 @@ def print_verdicts(sections: list[CaseSection]) -> None:
                   f"{len(r.records)} runs, {r.completed} completed")
             if r.note:
                 print(f"  ({r.note})")
-            for line in check_lines(r.checks):
+            for line in plain_check_lines(r.checks):
                 print("  " + line)
             for why in r.failures:
-                if not why.startswith("check failed"):
-                    print(f"  - {why}")
+                if not why.startswith("gate failed"):
+                    print(f"  {why}")
+
+
+def _claims_note(sections: list[CaseSection], strict: bool) -> str:
+    from mpsbench.results.sections import claim_counts, exit_ok
+
+    claims = [c for sec in sections for s in sec.solvers for c in s.rendered.claims]
+    if not claims:
+        return ""
+    note = f"; claims: {claim_counts(claims)}"
+    if strict and not exit_ok(sections, True) and exit_ok(sections, False):
+        note += " (--strict-claims: a refuted claim fails the run)"
+    return note

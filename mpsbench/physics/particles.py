@@ -19,6 +19,12 @@ from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
 
+# What a part without a field gets in :meth:`Particles.concat`: zero, except for ``wall_tag``,
+# where zero is a tag like any other (``WallMotion(0, ...)`` would also move the untagged rows,
+# e.g. an inflow reservoir joined to tagged walls) and -1 means untagged.
+UNTAGGED = -1.0
+FIELD_FILL: dict[str, float] = {"wall_tag": UNTAGGED}
+
 
 class Kind(IntEnum):
     FLUID = 0
@@ -156,7 +162,9 @@ class Particles:
     def concat(parts: list[Particles]) -> Particles:
         names = set().union(*(p.fields for p in parts)) if parts else set()
         fields = {
-            name: np.concatenate([p.fields.get(name, np.zeros(p.n)) for p in parts])
+            name: np.concatenate(
+                [p.fields.get(name, np.full(p.n, FIELD_FILL.get(name, 0.0))) for p in parts]
+            )
             for name in sorted(names)
         }
         return Particles(

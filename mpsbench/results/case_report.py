@@ -5,9 +5,13 @@ Layout of a case folder::
     results.csv, results.json   one row per run (common columns + parameters + metrics)
     tables/<name>.csv|.md       the case's tables
     figures/<name>.png          the case's figures
-    checks.json                 pass/fail of each of the case's checks
+    checks.json                 each gate (pass/fail) and claim (supported/refuted/inconclusive)
     findings.md                 the case's findings in plain words (also in report.md)
-    report.md                   findings in plain words, checks, tables, figure links
+    report.md                   findings in plain words, claims, gates, tables, figure links
+
+A case with refinement sets (``Case.refinements``) also gets the table
+``numerical_uncertainty`` (one row per set: levels, convergence, order, u_num; docs/method.md
+section 9).
 
 Every file is written atomically (a temporary file renamed into place; figures are drawn into
 a scratch folder and renamed), and text from records is escaped in the Markdown files
@@ -28,6 +32,8 @@ from typing import Any
 import pandas as pd
 
 from mpsbench.cases import Case, CaseCheck
+from mpsbench.cases.checks import claims as claims_of
+from mpsbench.cases.checks import gates as gates_of
 from mpsbench.errors import InputFileError
 from mpsbench.results.escape import md_escape, md_frame
 from mpsbench.results.paths import component
@@ -85,10 +91,24 @@ class Rendered:
         return [r for r in self.records if r.get("status") in NOT_RUN]
 
     @property
+    def gates(self) -> list[CaseCheck]:
+        return gates_of(self.checks)
+
+    @property
+    def claims(self) -> list[CaseCheck]:
+        return claims_of(self.checks)
+
+    @property
+    def refuted(self) -> list[CaseCheck]:
+        """Claims the records refute (they fail the run only with --strict-claims)."""
+        return [c for c in self.claims if c.passed is False]
+
+    @property
     def failures(self) -> list[str]:
-        """Why this set fails (empty when it passes).  Unsupported runs are not failures: a
-        set whose every run is unsupported passes with nothing decided (:attr:`note`)."""
-        out = [f"check failed: {c.name}" for c in self.checks if c.passed is False]
+        """Why this set fails its gates (empty when it passes; refuted claims are not here).
+        Unsupported runs are not failures: a set whose every run is unsupported passes with
+        nothing decided (:attr:`note`)."""
+        out = [f"gate failed: {c.name}" for c in self.gates if c.passed is False]
         if not self.records:
             out.append("no runs")
         elif not self.completed and len(self.unsupported) < len(self.records):
@@ -143,6 +163,10 @@ def render_case_outputs(
     atomic_write_text(outdir / "results.json", json.dumps(records, indent=1, default=str))
 
     tables = case.tables(records) if records else {}
+    if records and case.refinements and "numerical_uncertainty" not in tables:
+        unc = case.uncertainty(records).table()
+        if not unc.empty:
+            tables["numerical_uncertainty"] = unc
     tdir = outdir / "tables"
     tdir.mkdir(exist_ok=True)
     for name, table in tables.items():
@@ -157,14 +181,11 @@ def render_case_outputs(
     matplotlib.use("Agg")
     figures = _draw_figures(case, records, source, fdir) if records else []
 
-    # the checks judge the runs that were made: an unsupported run is no evidence either way
+    # the gates and claims judge the runs that were made: an unsupported run is no evidence
     made = [r for r in records if r.get("status") not in NOT_RUN]
-    checks = case.checks(made) if made else []
-    atomic_write_text(
-        outdir / "checks.json",
-        json.dumps([{"name": c.name, "passed": c.passed, "detail": c.detail} for c in checks],
-                   indent=1),
-    )
+    checks = (case.checks(made) + case.claims(made)) if made else []
+    atomic_write_text(outdir / "checks.json",
+                      json.dumps([c.to_json() for c in checks], indent=1))
     findings = case.findings(records) if records else ""
     atomic_write_text(outdir / "findings.md",
                       md_escape(findings.strip()) + "\n" if findings.strip() else "")
@@ -215,12 +236,11 @@ def _read_checks(path: Path) -> list[CaseCheck]:
         return []
     try:
         raw = json.loads(_read_text(path))
-        checks = [CaseCheck(str(c["name"]), c.get("passed"), str(c.get("detail", "")))
-                  for c in raw]
+        bad = [str(c["name"]) for c in raw if c.get("passed") not in (True, False, None)]
+        checks = [CaseCheck.from_json(c) for c in raw]  # gates and claims (kind, rule, ...)
     except (ValueError, TypeError, KeyError, AttributeError, RecursionError) as exc:
         raise InputFileError(f"{path}: truncated or corrupt ({type(exc).__name__}: "
                              f"{str(exc)[:120]}); render the case again") from None
-    bad = [c.name for c in checks if c.passed not in (True, False, None)]
     if bad:
         raise InputFileError(f"{path}: check {bad[0]!r} has 'passed' other than true, false "
                              "or null")
@@ -236,8 +256,21 @@ def _read_table(path: Path) -> pd.DataFrame:
 
 
 def check_lines(checks: list[CaseCheck]) -> list[str]:
-    mark = {True: "PASS", False: "FAIL", None: "n/a "}
-    return [f"- **{mark[c.passed]}** {c.name}: {c.detail}" for c in checks]
+    """Markdown list items, one per gate (claims are left out: :func:`claim_lines`)."""
+    return [f"- **{c.verdict}** {c.name}: {c.detail}" for c in gates_of(checks)]
+
+
+def claim_lines(checks: list[CaseCheck]) -> list[str]:
+    """Markdown list items, one per claim: verdict, id, statement, rule, evidence."""
+    return [f"- **{c.verdict}** {c.claim}: {c.name} Rule: {c.rule} Evidence: {c.detail}"
+            for c in claims_of(checks)]
+
+
+def plain_check_lines(checks: list[CaseCheck]) -> list[str]:
+    """The same for a terminal: no Markdown markup."""
+    out = [f"{c.verdict:<4} {c.name}: {c.detail}" for c in gates_of(checks)]
+    out += [f"claim {c.claim} {c.verdict}: {c.name} ({c.detail})" for c in claims_of(checks)]
+    return out
 
 
 def render_report(
@@ -274,8 +307,13 @@ def render_report(
     findings = case.findings(records) if records else ""
     if findings:
         lines += ["## Findings", "", md_escape(findings.strip()), ""]
-    if checks:
-        lines += ["## Checks", "", *map(md_escape, check_lines(checks)), ""]
+    if claims_of(checks):
+        lines += ["## Claims", "", "The paper's statements tested as hypotheses "
+                  "(docs/method.md section 8); they do not decide the exit status.", "",
+                  *map(md_escape, claim_lines(checks)), ""]
+    if gates_of(checks):
+        lines += ["## Gates", "", "These decide the exit status (docs/method.md section 8).", "",
+                  *map(md_escape, check_lines(checks)), ""]
     for name, table in tables.items():
         lines += [f"## Table: {md_escape(name)}", "", markdown_table(table),
                   f"(also `tables/{name}.csv`)", ""]

@@ -52,9 +52,10 @@ def cross_code_table(case: Case, records: list[dict[str, Any]]) -> pd.DataFrame:
     models = [n for n in na if n in df.columns]
     df["models"] = ["own kernel" if o else " / ".join(f"{r[n]}" for n in models)
                     for o, (_, r) in zip(own, df.iterrows(), strict=True)]
-    wall = pd.to_numeric(df.get("wall_time_s"), errors="coerce")
-    sim = pd.to_numeric(df.get("sim_time_s"), errors="coerce")
-    df["sim_s_per_wall_s"] = sim / wall.where(wall > 0)
+    if {"wall_time_s", "sim_time_s"} <= set(df.columns):
+        wall = pd.to_numeric(df["wall_time_s"], errors="coerce")
+        sim = pd.to_numeric(df["sim_time_s"], errors="coerce")
+        df["sim_s_per_wall_s"] = sim / wall.where(wall > 0)
     metrics = [m for m in accuracy_metrics(case) if m in df.columns]
     status = ["status"] if (df["status"] != "completed").any() else []
     cols = [*physical, "solver", "models", *status, *metrics,

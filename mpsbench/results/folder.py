@@ -19,7 +19,7 @@ Layout (``OUT`` defaults to ``reports/<YYYYmmdd-HHMM>-<tier>/``)::
 A folder written by ``mpsbench validate CASE`` (a single case folder, ``runs/`` at the top) is a
 results folder too: ``mpsbench report`` renders its summary.md and index.html in place.
 
-Pass/fail rules: :mod:`.sections`.
+Pass/fail rules (gates decide; claims only with --strict-claims): :mod:`.sections`.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from mpsbench.results.records import (
     load_records,
     solver_folder,
 )
-from mpsbench.results.sections import CaseSection
+from mpsbench.results.sections import CaseSection, exit_ok
 from mpsbench.results.summary import render_summary
 
 MANIFEST = "manifest.json"
@@ -85,7 +85,9 @@ def write_top_level(
     out: Path, sections: list[CaseSection], manifest: dict[str, Any], param_names: list[str],
     *, write_results: bool = True,
 ) -> bool:
-    """Write results.csv/json, figures/, summary.md and index.html; return True when all pass."""
+    """Write results.csv/json, figures/, summary.md and index.html; return True when every
+    case passes its gates (and, when the manifest says ``strict_claims``, no claim is
+    refuted)."""
     out.mkdir(parents=True, exist_ok=True)
     records = [r for sec in sections for r in sec.records]
     if write_results:
@@ -95,7 +97,7 @@ def write_top_level(
     copy_figures(out, sections)
     atomic_write_text(out / "summary.md", render_summary(sections, manifest, out))
     atomic_write_text(out / "index.html", render_index(sections, manifest, out))
-    return all(sec.passed for sec in sections)
+    return exit_ok(sections, bool(manifest.get("strict_claims")))
 
 
 # ---------------------------------------------------------------- reading a folder back

@@ -2,8 +2,9 @@
 
 Figures are embedded as base64 PNG data URIs, tables are pandas HTML, the style sheet is inline;
 the page loads nothing from the network and opens from a file:// URL or an e-mail attachment.
-Sections: overview, then one per case and, inside it, one per solver (plus a cross-solver one
-when several solvers ran).
+Sections: the claims table (the paper's statements: verdict, rule, evidence), the gates
+overview, then one per case and, inside it, one per solver (plus a cross-solver one when
+several solvers ran).
 """
 
 from __future__ import annotations
@@ -16,9 +17,19 @@ from typing import Any
 
 import pandas as pd
 
+from mpsbench.cases import CaseCheck
 from mpsbench.results.case_report import Rendered
 from mpsbench.results.escape import safe_href
-from mpsbench.results.sections import CaseSection, header_lines, overview_rows, verdict
+from mpsbench.results.sections import (
+    CaseSection,
+    claim_counts,
+    claim_rows,
+    exit_ok,
+    header_lines,
+    overview_rows,
+    verdict,
+)
+from mpsbench.results.summary import CLAIMS_INTRO, GATES_INTRO
 
 CSS = """
 body{font-family:system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:0;color:#1b1f24;
@@ -42,6 +53,7 @@ figure img{max-width:100%;height:auto;display:block}
 figcaption{font-size:.85em;color:#57606a;text-align:center}
 code{background:#eff1f3;border-radius:3px;padding:0 .25em;font-size:.9em}
 ul.checks{list-style:none;padding-left:0}ul.checks li{margin:.2em 0}
+table.claims td{text-align:left;vertical-align:top}
 """
 
 
@@ -53,6 +65,34 @@ def badge(state: bool | None) -> str:
     if state is None:
         return '<span class="na">n/a</span>'
     return f'<span class="{"pass" if state else "fail"}">{verdict(state)}</span>'
+
+
+def claim_badge(text: str) -> str:
+    """A claim's verdict: supported (green), refuted (red), inconclusive (grey)."""
+    cls = {"supported": "pass", "refuted": "fail"}.get(text, "na")
+    return f'<span class="{cls}">{esc(text)}</span>'
+
+
+def check_badge(check: CaseCheck) -> str:
+    return claim_badge(check.verdict) if check.is_claim else badge(check.passed)
+
+
+def claims_html(sections: list[CaseSection]) -> list[str]:
+    """The claims table: one row per claim tested, the verdict as a badge."""
+    rows = claim_rows(sections)
+    if not rows:
+        return []
+    cols = list(rows[0])
+    head = "".join(f"<th>{esc(c)}</th>" for c in cols)
+    body = []
+    for row in rows:
+        cells = "".join(
+            f"<td>{claim_badge(str(row[c])) if c == 'verdict' else _inline(str(row[c]))}</td>"
+            for c in cols)
+        body.append(f"<tr>{cells}</tr>")
+    return ['<h2 id="claims">Claims</h2>', f"<p>{_inline(CLAIMS_INTRO)}</p>",
+            f'<div class="scroll"><table class="claims"><tr>{head}</tr>{"".join(body)}'
+            "</table></div>"]
 
 
 def _inline(text: str) -> str:
@@ -176,10 +216,16 @@ def rendered_html(r: Rendered, *, checks: bool = True) -> list[str]:
         out.append("</ul>")
     if r.findings.strip():
         out += ["<h4>Findings</h4>", markdown_html(r.findings)]
-    if r.checks and checks:
-        out.append('<h4>Checks</h4><ul class="checks">')
+    if r.gates and checks:
+        out.append('<h4>Gates</h4><ul class="checks">')
         out += [f"<li>{badge(c.passed)} <strong>{esc(c.name)}</strong>: {_inline(c.detail)}</li>"
-                for c in r.checks]
+                for c in r.gates]
+        out.append("</ul>")
+    if r.claims and checks:
+        out.append('<h4>Claims</h4><ul class="checks">')
+        out += [f"<li>{check_badge(c)} <strong>{esc(c.claim)}</strong> {esc(c.name)} "
+                f"<em>Rule:</em> {_inline(c.rule)} <em>Evidence:</em> {_inline(c.detail)}</li>"
+                for c in r.claims]
         out.append("</ul>")
     head = r.headline_table()
     names = ([head[0]] if head else []) + [n for n in r.tables if not head or n != head[0]]
@@ -212,11 +258,14 @@ def combined_html(sec: CaseSection) -> list[str]:
 
 
 def render_index(sections: list[CaseSection], manifest: dict[str, Any], out: Path) -> str:
-    ok = all(s.passed for s in sections)
+    ok = exit_ok(sections, bool(manifest.get("strict_claims")))
     title = f"mpsbench validation ({manifest.get('tier', '?')}): {verdict(ok)}"
-    body = [f"<h1>mpsbench validation ({esc(manifest.get('tier', '?'))}) {badge(ok)}</h1>",
+    claims = [c for sec in sections for s in sec.solvers for c in s.rendered.claims]
+    counts = f' <small>claims: {esc(claim_counts(claims))}</small>' if claims else ""
+    body = [f"<h1>mpsbench validation ({esc(manifest.get('tier', '?'))}) {badge(ok)}{counts}</h1>",
             f'<p class="meta">{_inline(header_lines(manifest)[0])}</p>']
-    nav = ["<nav><strong>Cases</strong><ul>"]
+    nav = ['<nav><a href="#claims"><strong>Claims</strong></a> '
+           '<a href="#gates"><strong>Gates</strong></a><strong>Cases</strong><ul>']
     for sec in sections:
         subs = "".join(f'<a href="#{anchor(sec.name, s.solver)}">{esc(s.solver)}</a>'
                        for s in sec.solvers)
@@ -224,8 +273,10 @@ def render_index(sections: list[CaseSection], manifest: dict[str, Any], out: Pat
                    f"{badge(sec.passed)} <small>{subs}</small></li>")
     nav.append("</ul></nav>")
     body += nav
+    body += claims_html(sections)
     overview = pd.DataFrame(overview_rows(sections))
-    body += ["<h2>Overview</h2>", table_html(overview, index=False)]
+    body += ['<h2 id="gates">Gates</h2>', f"<p>{_inline(GATES_INTRO)}</p>",
+             table_html(overview, index=False)]
     for sec in sections:
         body.append(f'<section class="case" id="{anchor(sec.name)}">')
         body.append(f"<h2>{esc(sec.title or sec.name)} <code>{esc(sec.name)}</code> "

@@ -41,20 +41,21 @@ _NOT_SHOWN = frozenset({
 _NOT_XML = re.compile("[^\t\n\r\x20-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
 
 
-def check_outcome(check: CaseCheck) -> tuple[Outcome, str]:
+def check_outcome(check: CaseCheck, strict_claims: bool = False) -> tuple[Outcome, str]:
     """How a case check reads in a test report: ``(outcome, message)``.
 
     Held -> passed; did not hold -> failed; undecided (``passed`` is None: the data to decide
     is missing) -> skipped.  A check whose ``kind`` says it does not gate the case's verdict
     (anything but ``"gate"``; checks without a kind gate) is skipped, not failed, when it did
-    not hold: it is reported, and the message says so, but it does not turn CI red.
+    not hold: it is reported, and the message says so, but it does not turn CI red (a refuted
+    claim under ``strict_claims``, as ``--strict-claims`` asks, does).
     """
     kind = str(getattr(check, "kind", "gate") or "gate")
     if check.passed is True:
         return "passed", check.detail
     if check.passed is None:
         return "skipped", f"undecided: {check.detail}"
-    if kind != "gate":
+    if kind != "gate" and not (strict_claims and kind == "claim"):
         return "skipped", f"did not hold ({kind}; does not gate the verdict): {check.detail}"
     return "failed", check.detail
 
@@ -83,10 +84,10 @@ def _run_case(rec: dict[str, Any], classname: str) -> ET.Element:
     return tc
 
 
-def _check_case(check: CaseCheck, classname: str) -> ET.Element:
+def _check_case(check: CaseCheck, classname: str, strict_claims: bool = False) -> ET.Element:
     tc = ET.Element("testcase", name=clean(f"check {check.name}"), classname=clean(classname),
                     time="0.000")
-    outcome, message = check_outcome(check)
+    outcome, message = check_outcome(check, strict_claims)
     if outcome == "failed":
         ET.SubElement(tc, "failure", message=clean(message), type="check").text = clean(message)
     elif outcome == "skipped":
@@ -130,7 +131,8 @@ def junit_tree(sections: Iterable[CaseSection], manifest: dict[str, Any]) -> ET.
         for s in sec.solvers:
             classname = f"{sec.name}.{s.solver}"
             cases = [_run_case(r, classname) for r in s.rendered.records]
-            cases += [_check_case(c, classname) for c in s.rendered.checks]
+            cases += [_check_case(c, classname, bool(manifest.get("strict_claims")))
+                      for c in s.rendered.checks]
             props = {"case": sec.name, "solver": s.solver, "solver_version": s.version, **common}
             root.append(_suite(f"{sec.name}[{s.solver}]", cases, props, stamp))
     for key in ("tests", "failures", "errors", "skipped"):

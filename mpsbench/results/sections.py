@@ -2,8 +2,10 @@
 when several ran), with the pass/fail rules, the overview rows and the header line that the
 summary (:mod:`.summary`) and the page (:mod:`.html`) both show.
 
-Pass/fail: a (case, solver) fails when one of its checks fails or none of its runs completed;
+Pass/fail: a (case, solver) fails when one of its gates fails or none of its runs completed;
 a case fails when one of its solvers fails, or it could not be loaded, planned or rendered.
+Claims (docs/method.md section 8) never fail a case; with --strict-claims a refuted claim fails
+the whole run (:func:`exit_ok`).
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from typing import Any
 
 import pandas as pd
 
-from mpsbench.cases import Case
+from mpsbench.cases import Case, CaseCheck
 from mpsbench.errors import where
 from mpsbench.results.case_report import Rendered, render_case_outputs
 from mpsbench.results.paths import component, inside
@@ -48,8 +50,20 @@ class CaseSection:
 
     @property
     def passed(self) -> bool:
+        """Every gate of every solver passed (claims do not count)."""
         return (not self.error and bool(self.solvers)
                 and all(s.rendered.passed for s in self.solvers))
+
+    @property
+    def refuted(self) -> list[CaseCheck]:
+        return [c for s in self.solvers for c in s.rendered.refuted]
+
+
+def exit_ok(sections: list[CaseSection], strict_claims: bool = False) -> bool:
+    """The exit verdict: every case passes its gates (and, with ``strict_claims``, no claim is
+    refuted)."""
+    ok = all(s.passed for s in sections)
+    return ok and not (strict_claims and any(s.refuted for s in sections))
 
 
 def solver_order(records: list[dict[str, Any]]) -> list[str]:
@@ -167,23 +181,58 @@ def overview_rows(sections: list[CaseSection]) -> list[dict[str, Any]]:
     for sec in sections:
         if sec.error and not sec.solvers:
             rows.append({"case": sec.name, "solver": "", "runs": len(sec.records), "completed": 0,
-                         "not completed": 0, "checks passed": "", "result": "FAIL",
-                         "wall time [s]": 0.0})
+                         "not completed": 0, "gates passed": "", "claims": "",
+                         "result": "FAIL", "wall time [s]": 0.0})
             continue
         for s in sec.solvers:
             r = s.rendered
-            n_ok = sum(1 for c in r.checks if c.passed)
-            n_dec = sum(1 for c in r.checks if c.passed is not None)
+            n_ok = sum(1 for c in r.gates if c.passed)
+            n_dec = sum(1 for c in r.gates if c.passed is not None)
             rows.append({
                 "case": sec.name, "solver": s.solver, "runs": len(r.records),
                 "completed": r.completed, "not completed": len(r.records) - r.completed,
-                "checks passed": f"{n_ok}/{n_dec}" if r.checks else (
+                "gates passed": f"{n_ok}/{n_dec}" if r.gates else (
                     "(no supported run)" if r.records and len(r.unsupported) == len(r.records)
                     else "(none)"),
+                "claims": claim_counts(r.claims),
                 "result": verdict(r.passed and not sec.error),
                 "wall time [s]": round(sum(float(x.get("wall_time_s") or 0) for x in r.records), 1),
             })
     return rows
+
+
+def claim_counts(claims: list[CaseCheck]) -> str:
+    """``2 supported, 1 refuted`` (empty without claims)."""
+    counts: dict[str, int] = {}
+    for c in claims:
+        counts[c.verdict] = counts.get(c.verdict, 0) + 1
+    return ", ".join(f"{counts[v]} {v}" for v in ("supported", "refuted", "inconclusive")
+                     if v in counts)
+
+
+def claim_rows(sections: list[CaseSection]) -> list[dict[str, Any]]:
+    """One row per claim tested (per case, and per solver when several ran): claim, source,
+    rule, verdict, evidence (the numbers and the number of runs)."""
+    several = any(len(sec.solvers) > 1 for sec in sections)
+    rows = []
+    for sec in sections:
+        for s in sec.solvers:
+            for c in s.rendered.claims:
+                row = {"claim": f"{c.claim} {c.name}".strip(), "case": sec.name}
+                if several:
+                    row["solver"] = s.solver
+                n = len(c.runs)
+                runs = f" ({n} run{'' if n == 1 else 's'})" if n else ""
+                row.update({"source": c.source, "rule": c.rule, "verdict": c.verdict,
+                            "evidence": c.detail + runs})
+                rows.append(row)
+    return sorted(rows, key=lambda r: (_claim_number(r["claim"]), r["case"]))
+
+
+def _claim_number(text: str) -> tuple[int, str]:
+    head = text.split(" ", 1)[0]
+    digits = "".join(ch for ch in head if ch.isdigit())
+    return (int(digits) if digits else 10**6, head)
 
 
 def header_lines(manifest: dict[str, Any]) -> list[str]:

@@ -18,8 +18,8 @@ from typing import Any
 
 import pandas as pd
 
-from mpsbench.results.case_report import check_lines
-from mpsbench.results.sections import CaseSection, header_lines, overview_rows, verdict
+from mpsbench.results.case_report import check_lines, claim_lines
+from mpsbench.results.sections import CaseSection, exit_ok, header_lines, overview_rows, verdict
 
 ENV = "GITHUB_STEP_SUMMARY"
 LIMIT = 1024 * 1024  # bytes GitHub accepts per step
@@ -28,7 +28,7 @@ MAX_RUNS_LISTED = 20
 
 def validation_summary(sections: list[CaseSection], manifest: dict[str, Any]) -> str:
     """Verdict, header, the overview table, then each case's failures and checks."""
-    ok = all(s.passed for s in sections)
+    ok = exit_ok(sections, bool(manifest.get("strict_claims")))
     n_pass = sum(1 for s in sections if s.passed)
     what = f"{manifest.get('case', '?')}, tier {manifest.get('tier', '?')}"
     lines = [f"## mpsbench validate ({what}): {verdict(ok)} ({n_pass}/{len(sections)} cases pass)",
@@ -55,8 +55,11 @@ def validation_summary(sections: list[CaseSection], manifest: dict[str, Any]) ->
                              "complete (see the report)")
             if bad:
                 lines.append("")
-            if r.checks:
-                lines += ["Checks:", "", *check_lines(r.checks), ""]
+            if r.gates:
+                lines += ["Gates:", "", *check_lines(r.checks), ""]
+            if r.claims:
+                lines += ["Claims (they do not gate the verdict unless --strict-claims):", "",
+                          *claim_lines(r.checks), ""]
     return "\n".join(lines).rstrip() + "\n"
 
 

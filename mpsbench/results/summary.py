@@ -1,4 +1,5 @@
-"""``summary.md``: the Markdown summary of a results folder (overview, then each case).
+"""``summary.md``: the Markdown summary of a results folder: the claims table first (the
+paper's statements with verdict, rule and evidence), then the gates overview, then each case.
 
 Text that comes from records, manifests and plugins is escaped (:mod:`.escape`).
 """
@@ -11,17 +12,44 @@ from typing import Any
 import pandas as pd
 
 from mpsbench.results.case_report import Rendered, check_lines, markdown_table
-from mpsbench.results.escape import md_escape, md_frame
-from mpsbench.results.sections import CaseSection, header_lines, overview_rows, verdict
+from mpsbench.results.escape import md_cell, md_escape, md_frame
+from mpsbench.results.sections import (
+    CaseSection,
+    claim_counts,
+    claim_rows,
+    exit_ok,
+    header_lines,
+    overview_rows,
+    verdict,
+)
+
+CLAIMS_INTRO = (
+    "The paper's statements tested as hypotheses (docs/method.md section 8): each with the rule "
+    "that decided it and the numbers (u_num: numerical uncertainty, u_val: validation "
+    "uncertainty, docs/method.md section 9). A refuted claim is a finding: it does not change "
+    "the exit status unless `--strict-claims` is given.")
+GATES_INTRO = (
+    "Gates decide the exit status: analytic references reproduced by the recommended "
+    "configuration, the harness's own oracles, convergence where theory predicts it.")
 
 
 def render_summary(sections: list[CaseSection], manifest: dict[str, Any], out: Path) -> str:
-    ok = all(s.passed for s in sections)
+    strict = bool(manifest.get("strict_claims"))
+    ok = exit_ok(sections, strict)
     n_pass = sum(1 for s in sections if s.passed)
-    lines = [f"# mpsbench validation: {verdict(ok)} ({n_pass}/{len(sections)} cases pass)", ""]
+    claims = [c for sec in sections for s in sec.solvers for c in s.rendered.claims]
+    head = f"# mpsbench validation: {verdict(ok)} ({n_pass}/{len(sections)} cases pass)"
+    if claims:
+        head += f"; claims: {claim_counts(claims)}"
+        if strict:
+            head += " (--strict-claims: a refuted claim fails the run)"
+    lines = [head, ""]
     lines += [md_escape(line) for line in header_lines(manifest)] + [""]
+    rows = claim_rows(sections)
+    if rows:
+        lines += ["## Claims", "", CLAIMS_INTRO, "", *_compact_table(rows), ""]
     overview = pd.DataFrame(overview_rows(sections))
-    lines += ["## Overview", "", _md(overview), ""]
+    lines += ["## Gates", "", GATES_INTRO, "", _md(overview), ""]
     for sec in sections:
         lines += [f"## {md_escape(sec.title or sec.name)} (`{sec.name}`): {verdict(sec.passed)}",
                   ""]
@@ -55,12 +83,29 @@ def _rendered_lines(r: Rendered, out: Path) -> list[str]:
         lines += [md_escape(r.note[0].upper() + r.note[1:] + "."), ""]
     if r.findings.strip():
         lines += [md_escape(r.findings.strip()), ""]
-    if r.checks:
-        lines += ["Checks:", ""] + [md_escape(line) for line in check_lines(r.checks)] + [""]
+    if r.gates:
+        lines += ["Gates:", ""] + [md_escape(line) for line in check_lines(r.checks)] + [""]
+    if r.claims:
+        ids = ", ".join(dict.fromkeys(c.claim for c in r.claims))
+        lines += [md_escape(f"Claims {ids}: {claim_counts(r.claims)} (table at the top)."), ""]
     head = r.headline_table()
     if head is not None:
         lines += [f"Table **{head[0]}**:", "", markdown_table(head[1])]
     return lines
+
+
+def _cell(value: Any) -> str:
+    """A table cell that cannot break the Markdown table: escaped (:func:`md_cell`, pipes
+    too) and on one line."""
+    return " ".join(str(md_cell(str(value))).split())
+
+
+def _compact_table(rows: list[dict[str, Any]]) -> list[str]:
+    """A pipe table without column padding (the claims' rules and evidence are long)."""
+    cols = list(rows[0])
+    out = ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
+    out += ["| " + " | ".join(_cell(r.get(c, "")) for c in cols) + " |" for r in rows]
+    return out
 
 
 def _md(df: pd.DataFrame) -> str:

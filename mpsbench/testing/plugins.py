@@ -36,7 +36,8 @@ from mpsbench.run.specs import get_solver_class
 
 @dataclass
 class CaseResult:
-    """Records of every run of a case on a solver, and the case's checks on them."""
+    """Records of every run of a case on a solver, and the case's checks (gates and claims)
+    on them."""
 
     case: str
     solver: str
@@ -52,7 +53,13 @@ class CaseResult:
 
     @property
     def failed_checks(self) -> list[CaseCheck]:
-        return [c for c in self.checks if c.passed is False]
+        """Gates that failed (a refuted claim of the paper is a finding, not listed here)."""
+        return [c for c in self.checks if c.passed is False and not c.is_claim]
+
+    @property
+    def claims(self) -> list[CaseCheck]:
+        """The case's claims with their verdicts (supported / refuted / inconclusive)."""
+        return [c for c in self.checks if c.is_claim]
 
     def metric(self, name: str) -> list[Any]:
         """The values of one metric column, run by run (None where a run lacks it)."""
@@ -107,7 +114,8 @@ def run_case(
 
                 checks = write_case_outputs(case_obj, records, folder)
             else:
-                checks = case_obj.checks(records) if records else []
+                checks = (case_obj.checks(records) + case_obj.claims(records)) if records \
+                    else []
         return CaseResult(case_obj.name, solver_name, tier, records, list(checks),
                           Path(out) if out is not None else None)
 

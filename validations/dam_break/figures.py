@@ -14,16 +14,26 @@ from mpsbench.physics.particles import Particles
 from mpsbench.run.probes import write_vtu
 
 from .. import experiments
-from .report import KO, LOB, _num, _ok, label
+from .analysis import KO, LOB, _num, _ok, label
 
-DEFAULT_MODELS = {"weight": "wf2", "re_ratio": 2.1, "gradient": "pgm1", "re_ratio_laplacian": 0.0,
-                  "gate_delay": 0.0, "stabilization_walls": True}
+DEFAULT_MODELS = {
+    "weight": "wf2",
+    "re_ratio": 2.1,
+    "gradient": "pgm1",
+    "re_ratio_laplacian": 0.0,
+    "gate_delay": 0.0,
+    "stabilization_walls": True,
+    "cfl": 0.2,
+}
 
 
 def _pick(records: list[dict[str, Any]], geometry: str, variant: str) -> dict[str, Any] | None:
     """The finest completed run of a variant, preferring the default models."""
-    cands = [r for r in records if r.get("geometry") == geometry and r.get("variant") == variant
-             and _ok(r)]
+    cands = [
+        r
+        for r in records
+        if r.get("geometry") == geometry and r.get("variant") == variant and _ok(r)
+    ]
     if not cands:
         return None
 
@@ -34,8 +44,12 @@ def _pick(records: list[dict[str, Any]], geometry: str, variant: str) -> dict[st
     return min(cands, key=score)
 
 
-def _snapshot_figure(records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]],
-                     geometry: str, path: Path) -> Path | None:
+def _snapshot_figure(
+    records: list[dict[str, Any]],
+    arrays: Callable[[str], dict[str, np.ndarray]],
+    geometry: str,
+    path: Path,
+) -> Path | None:
     import matplotlib.pyplot as plt
 
     rows = []
@@ -48,12 +62,22 @@ def _snapshot_figure(records: list[dict[str, Any]], arrays: Callable[[str], dict
     if not rows:
         return None
     scale = 1000.0 * 9.81 * _num(rows[0][0].get("column_height"))  # rho g H [Pa]
-    allp = np.concatenate([d[f"snap{k}_p"][d[f"snap{k}_kind"] == 0] / scale
-                           for _, d in rows for k in range(len(d["snap_labels"]))])
+    allp = np.concatenate(
+        [
+            d[f"snap{k}_p"][d[f"snap{k}_kind"] == 0] / scale
+            for _, d in rows
+            for k in range(len(d["snap_labels"]))
+        ]
+    )
     vmax = float(np.percentile(allp, 99)) if len(allp) else 1.0
     ncol = max(len(d["snap_labels"]) for _, d in rows)
-    fig, axes = plt.subplots(len(rows), ncol, figsize=(3.6 * ncol, 2.6 * len(rows) + 0.6),
-                             squeeze=False, constrained_layout=True)
+    fig, axes = plt.subplots(
+        len(rows),
+        ncol,
+        figsize=(3.6 * ncol, 2.6 * len(rows) + 0.6),
+        squeeze=False,
+        constrained_layout=True,
+    )
     sym = "T" if geometry == KO else "t*"
     sc = None
     for i, (r, d) in enumerate(rows):
@@ -65,8 +89,16 @@ def _snapshot_figure(records: list[dict[str, Any]], arrays: Callable[[str], dict
             pos, kind, p = d[f"snap{k}_pos"], d[f"snap{k}_kind"], d[f"snap{k}_p"] / scale
             f = kind == 0
             ax.scatter(pos[~f, 0], pos[~f, 1], s=0.3, c="0.55", linewidths=0)
-            sc = ax.scatter(pos[f, 0], pos[f, 1], s=1.5, c=p[f], cmap="viridis", vmin=0.0,
-                            vmax=vmax, linewidths=0)
+            sc = ax.scatter(
+                pos[f, 0],
+                pos[f, 1],
+                s=1.5,
+                c=p[f],
+                cmap="viridis",
+                vmin=0.0,
+                vmax=vmax,
+                linewidths=0,
+            )
             ax.set_aspect("equal")
             ax.set_title(f"{label(r)}\n{sym} = {d['snap_labels'][k]:g}", fontsize=8)
             ax.tick_params(labelsize=7)
@@ -78,8 +110,9 @@ def _snapshot_figure(records: list[dict[str, Any]], arrays: Callable[[str], dict
     return path
 
 
-def _front_figure(records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]],
-                  path: Path) -> Path | None:
+def _front_figure(
+    records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]], path: Path
+) -> Path | None:
     import matplotlib.pyplot as plt
 
     runs = [r for r in records if r.get("geometry") == KO and _ok(r)]
@@ -92,8 +125,11 @@ def _front_figure(records: list[dict[str, Any]], arrays: Callable[[str], dict[st
         d = arrays(r["run_id"])
         if "front_T" not in d:
             continue
-        style = "-" if r.get("variant") == "iwc-mps" else ("--" if r.get("variant") == "wc-mps"
-                                                          else ":")
+        style = (
+            "-"
+            if r.get("variant") == "iwc-mps"
+            else ("--" if r.get("variant") == "wc-mps" else ":")
+        )
         lines = ax1.plot(d["front_T"], d["front_Z"], style, lw=1.2, label=label(r))
         ax2.plot(d["height_tau"], d["height_H"], style, lw=1.2, color=lines[0].get_color())
     ax1.plot(front["T"], front["Z"], "ko", ms=4, label="Martin & Moyce 1952")
@@ -114,8 +150,9 @@ def _front_figure(records: list[dict[str, Any]], arrays: Callable[[str], dict[st
     return path
 
 
-def _pressure_figure(records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]],
-                     path: Path) -> Path | None:
+def _pressure_figure(
+    records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]], path: Path
+) -> Path | None:
     import matplotlib.pyplot as plt
 
     runs = [r for r in records if r.get("geometry") == LOB and _ok(r)]
@@ -134,10 +171,20 @@ def _pressure_figure(records: list[dict[str, Any]], arrays: Callable[[str], dict
             lines = ax.plot(d["sensor_tstar"], d["sensor_p"][:, k], lw=0.6, label=label(r))
             pk = _num(r.get(f"peak_p_sensor{k + 1}"))
             if math.isfinite(pk):
-                ax.plot([_num(r.get(f"peak_tstar_sensor{k + 1}"))], [pk], "o", ms=4,
-                        color=lines[0].get_color())
-        ax.axhspan(band["lo"][k], band["hi"][k], color="0.6", alpha=0.35,
-                   label="measured 2.5-97.5 % (peak)")
+                ax.plot(
+                    [_num(r.get(f"peak_tstar_sensor{k + 1}"))],
+                    [pk],
+                    "o",
+                    ms=4,
+                    color=lines[0].get_color(),
+                )
+        ax.axhspan(
+            band["lo"][k],
+            band["hi"][k],
+            color="0.6",
+            alpha=0.35,
+            label="measured 2.5-97.5 % (peak)",
+        )
         ax.axhline(band["median"][k], color="k", lw=0.8, ls="--", label="measured median")
         ax.set_xlim(left=lo_t)
         ax.set_title(f"sensor {k + 1}, z = {band['z'][k] * 1000:g} mm", fontsize=9)
@@ -150,8 +197,9 @@ def _pressure_figure(records: list[dict[str, Any]], arrays: Callable[[str], dict
     return path
 
 
-def write_vtus(records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]],
-               runs_dir: Path) -> list[Path]:
+def write_vtus(
+    records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]], runs_dir: Path
+) -> list[Path]:
     """runs/<run_id>_T<k>.vtu (or _tstar<k> for lobovsky) for every run with vtu = true."""
     out = []
     for r in records:
@@ -160,15 +208,15 @@ def write_vtus(records: list[dict[str, Any]], arrays: Callable[[str], dict[str, 
         d = arrays(r["run_id"])
         sym = "T" if r.get("geometry") == KO else "tstar"
         for k, lab in enumerate(d.get("snap_labels", [])):
-            p = Particles(d[f"snap{k}_pos"], d[f"snap{k}_vel"], d[f"snap{k}_kind"],
-                          d[f"snap{k}_p"])
+            p = Particles(d[f"snap{k}_pos"], d[f"snap{k}_vel"], d[f"snap{k}_kind"], d[f"snap{k}_p"])
             runs_dir.mkdir(parents=True, exist_ok=True)
             out.append(write_vtu(runs_dir / f"{r['run_id']}_{sym}{lab:g}.vtu", p))
     return out
 
 
-def figures(records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]],
-            outdir: Path) -> list[Path]:
+def figures(
+    records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]], outdir: Path
+) -> list[Path]:
     made = [
         _snapshot_figure(records, arrays, KO, outdir / "snapshots_koshizuka-oka.png"),
         _front_figure(records, arrays, outdir / "surge_front_and_height.png"),

@@ -57,7 +57,10 @@ def time_star(t: ArrayLike, height: float, g: float = G) -> FloatArray:
 
 
 def curve_errors(
-    x_sim: ArrayLike, y_sim: ArrayLike, x_exp: ArrayLike, y_exp: ArrayLike,
+    x_sim: ArrayLike,
+    y_sim: ArrayLike,
+    x_exp: ArrayLike,
+    y_exp: ArrayLike,
     x_max: float = math.inf,
 ) -> dict[str, float]:
     """Simulation interpolated at the experimental abscissae (x_exp <= x_max, inside the run).

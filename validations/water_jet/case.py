@@ -34,7 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from mpsbench.cases import Case, CaseCheck, CaseRun
+from mpsbench.cases import Case, CaseCheck, CaseRun, RefinementGrid
+from mpsbench.cases.refinement import SPACE, TIME, Refinement
 from mpsbench.physics.config import FlowPhysics, Models
 from mpsbench.physics.operators import lattice_constants
 from mpsbench.physics.particles import Kind
@@ -42,16 +43,14 @@ from mpsbench.run.estimate import RunEstimate, flow_dt, pairs_for, steps_for
 from mpsbench.run.probes import Callback, PointPressure
 from mpsbench.run.runner import run
 
+from . import analysis as wja
 from . import figures as figs
-from . import tables as tabs
+from . import findings as wjf
 from .geometry import JetGeometry, build_problem, plate_points
 from .metrics import (
-    TABLE_CP,
-    TABLE_XB,
     FrameMeasures,
     cp_errors,
     frame_measures,
-    free_streamline_cp,
     penetrations,
     plate_force_ratio,
     plate_profile,
@@ -131,10 +130,19 @@ class WaterJetCase(Case):
         "the stabilization adds at the run's mean dt (water: U b / nu = 1e5) (-)",
     }
     compare = COMPARE
+    headline = "headline_with_u_num"
+    # u_num of the plate and noise measures (docs/method.md section 9): in l0 at fixed cfl (dt
+    # shrinks with l0) and in cfl; WC-MPS is first order, the order assumed with two levels
+    refinements = (
+        Refinement("l0", wja.HEADLINE_METRICS, SPACE, order=1.0),
+        Refinement("cfl", wja.HEADLINE_METRICS, TIME, order=1.0),
+    )
     tiers = {
         # CI: the acceptance model at b/10, stabilization off and on, a short run
         "smoke": [{"l0": [L0_COARSE], "stabilization": [False, True],
-                   "t_end": [5.0], "t_window": [2.0]}],
+                   "t_end": [5.0], "t_window": [2.0]},
+                  # a dt refinement set, so CI exercises u_num in dt
+                  RefinementGrid(l0=[L0_COARSE], cfl=[0.1], t_end=[5.0], t_window=[2.0])],
         # the most informative subset: the acceptance pair at b/20 (+ the stabilization without
         # wall neighbours and with smaller alpha_s, and the acceptance model at b/40, which show
         # where its Cp error comes from), gradient x stabilization at b/10, a collision sweep
@@ -148,6 +156,10 @@ class WaterJetCase(Case):
              "stabilization": [False, True]},
             {"l0": [L0_COARSE], "collision_distance": [0.5, 0.7, 0.9],
              "stabilization": [False, True]},
+            # the acceptance run at half the time step: with b/10, b/20, b/40 above, the
+            # refinement sets of its u_num in l0 and dt (docs/method.md section 9); its
+            # unstabilized twin gets the l0 component only (b/10, b/20), to keep the tier short
+            RefinementGrid(l0=[L0_FINE], cfl=[0.1]),
         ],
         "paper": [
             {"stabilization": [False, True], "gradient": ["pgm1", "pgm2", "pgm3"],
@@ -274,56 +286,22 @@ class WaterJetCase(Case):
                           snap_t_over_T=np.array([result.time / scale]))
         return CaseRun(metrics=metrics, results=[result], arrays=arrays)
 
-    # ------------------------------------------------------------------ checks and report
+    # ------------------------------------------------------------------ report
     def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
-        out = [_analytic_check()]
-        acc = [r for r in tabs.completed(records) if tabs.is_acceptance(r)]
-        if not acc:
-            out.append(CaseCheck(
-                "acceptance: stabilization on, pgm1, WF2, l0 = b/20", None,
-                "no completed run of that model in this tier (run --tier quick or paper)"))
-        for r in acc:
-            ok = r["cp_rms_error"] is not None and r["cp_rms_error"] < 0.1 and r[
-                "penetrations"] == 0
-            out.append(CaseCheck(
-                "acceptance: stabilization on, pgm1, WF2, l0 = b/20",
-                bool(ok),
-                f"Cp RMS error over 0 <= x/b <= 2 = {tabs.fmt(r['cp_rms_error'])} (< 0.1 "
-                f"needed; from each half of the window: {tabs.fmt(r.get('cp_rms_error_half1'))}, "
-                f"{tabs.fmt(r.get('cp_rms_error_half2'))}), penetrations = "
-                f"{r['penetrations']} (0 needed), collision_distance {r['collision_distance']}, "
-                f"run {r['run_id']}"))
-        stab = [r for r in tabs.completed(records) if r.get("stabilization")]
-        if stab:
-            worst = max(stab, key=lambda r: r.get("penetrations") or 0)
-            out.append(CaseCheck(
-                "no particle crosses the plate with the stabilization on",
-                (worst.get("penetrations") or 0) == 0,
-                f"max penetrations over {len(stab)} stabilized runs = "
-                f"{worst.get('penetrations')} ({worst['run_id']})"))
-        return out
+        return wja.gates(records)
+
+    def claims(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
+        return wja.claims(records, self.uncertainty(records))
 
     def tables(self, records: list[dict[str, Any]]) -> dict[str, Any]:
-        return tabs.tables(records)
+        return wja.tables(records, self.uncertainty(records))
 
     def figures(self, records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.ndarray]],
                 outdir: Path) -> list[Path]:
         return figs.figures(records, arrays, outdir)
 
     def findings(self, records: list[dict[str, Any]]) -> str:
-        return tabs.findings(records)
-
-
-def _analytic_check() -> CaseCheck:
-    """The free-streamline solution against docs/method.md's table and its momentum balance."""
-    table_err = float(np.max(np.abs(free_streamline_cp(TABLE_XB) - TABLE_CP)))
-    x = np.linspace(0.0, 20.0, 200001)
-    integral = 2.0 * float(np.trapezoid(free_streamline_cp(x), x))
-    ok = table_err < 6e-4 and abs(integral - 2.0) < 1e-6
-    return CaseCheck(
-        "free-streamline reference solution", ok,
-        f"max |Cp - table| = {table_err:.1e} at x/b = 0..2 (table rounded to 1e-3); "
-        f"integral of Cp d(x/b) = {integral:.7f} (momentum balance: 2)")
+        return wjf.findings(records, self.uncertainty(records))
 
 
 CASE = WaterJetCase()

@@ -9,8 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from .metrics import TABLE_CP, TABLE_XB, free_streamline_cp
-from .tables import (
+from .analysis import (
     collision_groups,
     completed,
     is_default_stabilization,
@@ -18,6 +17,7 @@ from .tables import (
     pairs,
     resolution,
 )
+from .metrics import TABLE_CP, TABLE_XB, free_streamline_cp
 
 CP_MAX_COLOUR = 1.5  # colour scale of the snapshots: Cp in [0, 1.5]
 

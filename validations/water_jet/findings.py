@@ -1,195 +1,32 @@
-"""Tables and plain-word findings of the water-jet study (records -> pandas / Markdown)."""
+"""Water jet: the findings in plain words (docs/method.md 6c): what the stabilization does to
+the noise and to the plate pressure, where the plate pressure comes from, the time step, the
+resolution and alpha_s trends, the collision distance."""
 
 from __future__ import annotations
 
 import math
 from typing import Any
 
-import pandas as pd
+from mpsbench.cases import analysis as an
+from mpsbench.cases.refinement import NumericalUncertainty, UNum
 
-from .metrics import stabilization_viscosity
-from .params import PARAMS
-
-NOISE_MEASURES = {
-    "noise_spatial": "spatial pressure noise",
-    "noise_temporal": "temporal stagnation-pressure noise",
-    "density_drift_mean": "mean number-density drift",
-}
-# parameters that only matter when the stabilization is on: left out of the model key
-_STAB_ONLY = ("stabilization", "alpha_s", "stabilization_walls")
-_SKIP = {"case", "solver", "solver_version", "tier", "run_id", "status", "reason"}
-
-
-def completed(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    return [r for r in records if r.get("status") == "completed"]
-
-
-def resolution(r: dict[str, Any]) -> int:
-    return int(round(r["b"] / r["l0"]))
-
-
-def is_acceptance(r: dict[str, Any]) -> bool:
-    """The acceptance model: stabilization on, pgm1, WF2, l0 = b/20, no collision model."""
-    return (
-        bool(r.get("stabilization")) and r.get("gradient") == "pgm1" and r.get("weight") == "wf2"
-        and resolution(r) == 20 and not r.get("collision_distance")
-        and is_default_stabilization(r)
-    )
-
-
-def fmt(v: Any, digits: int = 3) -> str:
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "n/a"
-    if isinstance(v, float):
-        return f"{v:.{digits}g}"
-    return str(v)
-
-
-DEFAULT_ALPHA_S = 0.01
-
-
-def is_default_stabilization(r: dict[str, Any]) -> bool:
-    """alpha_s 0.01 with wall and dummy particles in the sum (docs/method.md 5 defaults)."""
-    return r.get("alpha_s", DEFAULT_ALPHA_S) == DEFAULT_ALPHA_S and r.get(
-        "stabilization_walls", True) is not False
-
-
-def variant(r: dict[str, Any]) -> str:
-    """How a stabilized run departs from the default stabilization ('' if it does not)."""
-    if not r.get("stabilization") or is_default_stabilization(r):
-        return ""
-    parts = []
-    if r.get("alpha_s", DEFAULT_ALPHA_S) != DEFAULT_ALPHA_S:
-        parts.append(f"alpha_s {r['alpha_s']:g}")
-    if r.get("stabilization_walls", True) is False:
-        parts.append("no wall neighbours in the stabilization")
-    return ", ".join(parts)
-
-
-def stabilization_re(r: dict[str, Any]) -> float:
-    """U b / nu_s of a record (recomputed from its mean time step if the metric is missing)."""
-    v = r.get("stabilization_re")
-    if v is not None and math.isfinite(v):
-        return float(v)
-    if not r.get("stabilization") or not r.get("n_steps") or not r.get("alpha_s"):
-        return math.nan
-    dt = r["t_end"] * r["b"] / r["U"] / r["n_steps"]
-    nu_s = stabilization_viscosity(r["weight"], r["re_ratio"], r["l0"], r["alpha_s"], dt)
-    return float(r["U"] * r["b"] / nu_s)
-
-
-def label(r: dict[str, Any]) -> str:
-    cd = r.get("collision_distance") or 0.0
-    coll = f", alpha_c {cd:g}" if cd else ""
-    var = variant(r)
-    return f"{r['gradient']}, {r['weight'].upper()}, b/{resolution(r)}{coll}" + (
-        f" [{var}]" if var else "")
-
-
-def _model_key(r: dict[str, Any], params: list[str]) -> tuple[Any, ...]:
-    return tuple((k, repr(r.get(k))) for k in params if k not in _STAB_ONLY)
-
-
-def _params(records: list[dict[str, Any]]) -> list[str]:
-    return [p.name for p in PARAMS if any(p.name in r for r in records)]
-
-
-def pairs(records: list[dict[str, Any]]) -> list[tuple[dict[str, Any], dict[str, Any]]]:
-    """(off, on) record pairs that differ only in the stabilization settings."""
-    done = completed(records)
-    params = _params(done)
-    off = {_model_key(r, params): r for r in done if not r.get("stabilization")}
-    out = []
-    for r in done:
-        if r.get("stabilization"):
-            k = _model_key(r, params)
-            if k in off:
-                out.append((off[k], r))
-    out.sort(key=lambda p: (resolution(p[0]), p[0]["gradient"], p[0]["weight"],
-                            p[0].get("collision_distance") or 0.0, label(p[1])))
-    return out
-
-
-def factor(off: Any, on: Any) -> float:
-    """Reduction factor off / on (> 1: the stabilization reduces the measure)."""
-    if off is None or on is None or not on or not math.isfinite(off) or not math.isfinite(on):
-        return math.nan
-    return float(off) / float(on)
-
-
-def noise_table(records: list[dict[str, Any]]) -> pd.DataFrame:
-    rows = []
-    for off, on in pairs(records):
-        row: dict[str, Any] = {"model": label(on)}
-        for m in NOISE_MEASURES:
-            row[f"{m} off"] = off.get(m)
-            row[f"{m} on"] = on.get(m)
-            row[f"{m} off/on"] = factor(off.get(m), on.get(m))
-        row["penetrations off"] = off.get("penetrations")
-        row["penetrations on"] = on.get("penetrations")
-        rows.append(row)
-    return pd.DataFrame(rows).set_index("model") if rows else pd.DataFrame()
-
-
-PLATE_COLUMNS = ("cp_rms_error", "cp_max_error", "cp_stagnation", "plate_force",
-                 "near_wall_cp", "near_wall_cp_eos", "sheet_speed",
-                 "stabilization_re", "penetrations",
-                 "noise_spatial", "noise_temporal", "density_drift_mean", "density_drift_max",
-                 "cp_stagnation_drift", "wall_time_s")
-
-
-def run_table(records: list[dict[str, Any]]) -> pd.DataFrame:
-    rows = []
-    for r in sorted(completed(records), key=lambda r: (resolution(r), r["gradient"], r["weight"],
-                                                      r.get("collision_distance") or 0.0,
-                                                      bool(r["stabilization"]))):
-        row: dict[str, Any] = {"model": label(r),
-                               "stabilization": "on" if r["stabilization"] else "off"}
-        row.update({c: r.get(c) for c in PLATE_COLUMNS})
-        row["stabilization_re"] = stabilization_re(r)
-        rows.append(row)
-    return pd.DataFrame(rows).set_index(["model", "stabilization"]) if rows else pd.DataFrame()
-
-
-def collision_groups(records: list[dict[str, Any]]) -> dict[tuple[Any, ...], list[dict[str, Any]]]:
-    """Runs that differ only in the collision distance (at least two distances)."""
-    done = completed(records)
-    params = [p for p in _params(done) if p != "collision_distance"]
-    groups: dict[tuple[Any, ...], list[dict[str, Any]]] = {}
-    for r in done:
-        key = tuple((k, repr(r.get(k))) for k in params)
-        groups.setdefault(key, []).append(r)
-    return {
-        k: sorted(v, key=lambda r: r.get("collision_distance") or 0.0)
-        for k, v in groups.items()
-        if len({r.get("collision_distance") for r in v}) >= 2
-    }
-
-
-def collision_table(records: list[dict[str, Any]]) -> pd.DataFrame:
-    rows = []
-    for group in collision_groups(records).values():
-        for r in group:
-            rows.append({
-                "model": f"{r['gradient']}, {r['weight'].upper()}, b/{resolution(r)}",
-                "stabilization": "on" if r["stabilization"] else "off",
-                "alpha_c": r.get("collision_distance") or 0.0,
-                **{c: r.get(c) for c in ("noise_spatial", "noise_temporal", "density_drift_mean",
-                                         "density_drift_max", "penetrations", "cp_rms_error",
-                                         "cp_stagnation", "sheet_speed", "nn_distance_mean",
-                                         "close_fraction")},
-            })
-    if not rows:
-        return pd.DataFrame()
-    return pd.DataFrame(rows).set_index(["model", "stabilization", "alpha_c"])
-
-
-def tables(records: list[dict[str, Any]]) -> dict[str, pd.DataFrame]:
-    out = {"noise": noise_table(records), "plate_cp": run_table(records)}
-    coll = collision_table(records)
-    if not coll.empty:
-        out["collision"] = coll
-    return out
+from .analysis import (
+    CP_LIMIT,
+    DEFAULT_ALPHA_S,
+    NOISE_MEASURES,
+    collision_groups,
+    completed,
+    default_cfl,
+    dt_table,
+    factor,
+    fmt,
+    is_acceptance,
+    is_default_stabilization,
+    label,
+    pairs,
+    resolution,
+    stabilization_re,
+)
 
 
 def _effect(name: str, off: Any, on: Any) -> str:
@@ -205,7 +42,7 @@ def _effect(name: str, off: Any, on: Any) -> str:
     return f"{name} {fmt(off)} -> {fmt(on)} ({verdict})"
 
 
-def findings(records: list[dict[str, Any]]) -> str:
+def findings(records: list[dict[str, Any]], unc: NumericalUncertainty | None = None) -> str:
     lines: list[str] = []
     prs = [p for p in pairs(records) if not p[0].get("collision_distance")]
     if prs:
@@ -252,25 +89,34 @@ def findings(records: list[dict[str, Any]]) -> str:
             lines.append(f"- {head}: " + "; ".join(cells) + ".")
             lines.append(f"  {_collision_verdict(group)}")
         lines.append("")
-    acc = [r for r in completed(records) if is_acceptance(r)]
-    acc += [r for r in completed(records) if r.get("stabilization") and variant(r)
-            and r.get("gradient") == "pgm1" and r.get("weight") == "wf2"
-            and resolution(r) == 20 and not r.get("collision_distance")]
-    for r in acc:
-        ok = (r.get("cp_rms_error") or math.inf) < 0.1 and r.get("penetrations") == 0
-        title = "Acceptance run" if is_acceptance(r) else "Variant of the acceptance run"
-        lines.append(
-            f"**{title}** ({label(r)}, stabilization on): Cp RMS error "
-            f"{fmt(r.get('cp_rms_error'))} (limit 0.1), penetrations {r.get('penetrations')}: "
-            f"{'met' if ok else 'NOT met'}" + (
-                "." if is_acceptance(r) else " (for comparison; not the acceptance model).")
-        )
-        lines.append("")
+    lines += _time_step_note(records)
+    for r in (r for r in completed(records) if is_acceptance(r)):
+        u = unc.of(r, "cp_rms_error") if unc is not None else UNum(an.num(r.get("cp_rms_error")))
+        lines += [
+            f"**Acceptance run** ({label(r)}, stabilization on): Cp RMS error {u.text()} "
+            f"(claim C4b: below {CP_LIMIT:g}?); numerical uncertainty: {u.detail()}; "
+            f"penetrations {r.get('penetrations')}.", ""]
     if lines:
         lines += ["", "Each number comes from one run and one averaging window; the temporal "
                   "measure especially scatters by tens of per cent between runs that differ "
                   "only slightly, so read factors near 1 as 'no clear effect'."]
     return "\n".join(lines)
+
+
+def _time_step_note(records: list[dict[str, Any]]) -> list[str]:
+    """What halving cfl does to the runs that differ only in cfl."""
+    table = dt_table(records)
+    if table.empty:
+        return []
+    out = ["**What the time step does** (cfl; the stabilization's added viscosity grows as dt "
+           "shrinks, Re_s = U b / nu_s):", ""]
+    for (model, state), g in table.groupby(level=[0, 1], sort=False):
+        cells = [f"cfl {cfl:g}: Cp error {fmt(row['cp_rms_error'])}, stagnation "
+                 f"{fmt(row['cp_stagnation'])}, spatial noise {fmt(row['noise_spatial'])}"
+                 + (f", Re_s {fmt(row['stabilization_re'])}" if state == "on" else "")
+                 for cfl, row in g.reset_index().set_index("cfl").iterrows()]
+        out.append(f"- {model}, stabilization {state}: " + "; ".join(cells) + ".")
+    return out + [""]
 
 
 def _pressure_source_note(prs: list[tuple[dict[str, Any], dict[str, Any]]]) -> list[str]:
@@ -296,7 +142,7 @@ def _stabilization_trend_note(records: list[dict[str, Any]]) -> list[str]:
     """Cp error of the stabilized pgm1/WF2 model (no collision) against l0 and alpha_s."""
     runs = [r for r in completed(records) if r.get("stabilization") and r.get("gradient") == "pgm1"
             and r.get("weight") == "wf2" and not r.get("collision_distance")
-            and r.get("stabilization_walls", True) is not False]
+            and r.get("stabilization_walls", True) is not False and default_cfl(r)]
     by_l0 = sorted((r for r in runs if r.get("alpha_s") == DEFAULT_ALPHA_S), key=resolution)
     by_alpha = sorted((r for r in runs if resolution(r) == 20), key=lambda r: r["alpha_s"])
     out = []
