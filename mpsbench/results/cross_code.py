@@ -50,7 +50,7 @@ def cross_code_table(case: Case, records: list[dict[str, Any]]) -> pd.DataFrame:
     own = df["not_applicable"].fillna("").astype(str) != "" if "not_applicable" in df else (
         pd.Series(False, index=df.index))
     models = [n for n in na if n in df.columns]
-    df["models"] = ["own kernel" if o else " / ".join(f"{r[n]}" for n in models)
+    df["models"] = ["own kernel" if o else ", ".join(f"{n}={r[n]}" for n in models)
                     for o, (_, r) in zip(own, df.iterrows(), strict=True)]
     if {"wall_time_s", "sim_time_s"} <= set(df.columns):
         wall = pd.to_numeric(df["wall_time_s"], errors="coerce")
