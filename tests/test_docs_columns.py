@@ -19,7 +19,8 @@ def _section(text: str, case: str) -> str:
     return match.group(1)
 
 
-@pytest.mark.parametrize("case", ["diffusion", "couette", "water-jet", "dam-break"])
+@pytest.mark.parametrize("case", ["diffusion", "couette", "water-jet", "dam-break", "hydrostatic",
+                                  "poiseuille"])
 def test_every_column_of_the_case_is_documented(case: str) -> None:
     section = _section(DOC.read_text(), case)
     c = get_case(case)
