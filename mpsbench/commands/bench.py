@@ -77,7 +77,7 @@ def register(sub: Any) -> None:
 def _default_solvers() -> list[str]:
     """Every available backend that can run the bench's workload (an outside code without
     stabilization, such as PySPH or an external program, is timed with --pysph or by name)."""
-    from mpsbench.run.protocol import SOLVERS
+    from mpsbench.run.protocol import SOLVERS, Capabilities
     from mpsbench.testing.problems import dam_break_problem
 
     workload = dam_break_problem(l0=0.05, stabilization=True)
@@ -87,7 +87,7 @@ def _default_solvers() -> list[str]:
             cls = SOLVERS.get(name)
         except Exception:  # noqa: BLE001 - an unavailable backend is simply not timed
             continue
-        if cls.capabilities.gaps(workload):
+        if getattr(cls, "capabilities", Capabilities()).gaps(workload):
             continue
         out.append(name)
     return sorted(out, key=lambda name: name != "reference")  # ratios to the reference
