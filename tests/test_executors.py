@@ -172,13 +172,13 @@ def test_dask_unknown_case_fails_only_its_run(tmp_path: Path, dask_client: Any) 
     assert recs[1]["status"] == "failed" and "no-such-case" in recs[1]["reason"]
 
 
-def test_dask_worker_death_fails_only_its_run(tmp_path: Path, dask_client: Any) -> None:
+def test_dask_worker_death_crashes_only_its_run(tmp_path: Path, dask_client: Any) -> None:
     tasks = toy_tasks(die=[False, True], weight=["wf1"])
     with DaskExecutor(dask_client) as ex:
         recs = run_tasks(tasks, tmp_path, executor=ex)
     by_die = {r["die"]: r for r in recs}
     assert by_die[False]["status"] == "completed"
-    assert by_die[True]["status"] == "failed"
+    assert by_die[True]["status"] == "crashed"
     assert "worker process died" in by_die[True]["reason"]
     assert load_record(tmp_path / "runs" / f"{by_die[True]['run_id']}.json") is not None
     dask_client.wait_for_workers(2, timeout=60)  # the cluster recovers

@@ -154,12 +154,12 @@ def test_failed_setup_is_a_failed_run_with_the_reason() -> None:
     assert result.n_steps == 0 and result.solver_name == "toy"
 
 
-def test_unsupported_problem_is_a_failed_run() -> None:
+def test_unsupported_problem_is_an_unsupported_run_with_the_reasons() -> None:
     class DiffusionOnly(ToySolver):
         capabilities = Capabilities(physics=frozenset({"diffusion"}))
 
     result = run(DiffusionOnly(), toy_problem(), end_time=1.0)
-    assert result.status == Status.FAILED
+    assert result.status == Status.UNSUPPORTED and result.n_steps == 0
     assert "cannot run this problem" in result.reason and "'flow'" in result.reason
 
 

@@ -214,7 +214,7 @@ def test_rerun_skips_every_run_and_force_redoes_them(
 ) -> None:
     args = ("--tier", "smoke", "--set", "laplacian=xu-jin", "--set", "l0=5e-5",
             "--set", "steady=false", "--set", "dt_check=false", "--set", "wall_velocity=prescribed",
-            "--out", str(tmp_path))
+            "--set", "drift=0", "--out", str(tmp_path))
     assert validate(*args) == 0
     first = capsys.readouterr().err
     assert first.count("] completed") == 1 and "] skip" not in first

@@ -29,12 +29,25 @@ from mpsbench.errors import ConfigError
 from mpsbench.params import Param
 from mpsbench.registry import Registry
 from mpsbench.run.estimate import RunEstimate
-from mpsbench.run.runner import RunResult
+from mpsbench.run.runner import RunLimits, RunResult
 
 if TYPE_CHECKING:  # pandas is imported when a case analyses records, not when the CLI starts
     from mpsbench.cases.refinement import NumericalUncertainty, Refinement
 
 TIERS = ("smoke", "quick", "paper")
+
+TIER_LIMITS: dict[str, RunLimits] = {
+    "smoke": RunLimits(max_steps=200_000, max_wall_s=600.0),
+    "quick": RunLimits(max_steps=2_000_000, max_wall_s=3 * 3600.0),
+    "paper": RunLimits(max_steps=20_000_000, max_wall_s=48 * 3600.0),
+}
+"""Default run limits per tier (``--max-steps`` / ``--max-wall`` override them): far above what
+a healthy run of the tier takes (smoke runs take seconds, quick ones minutes), so they only
+stop a run whose time step collapsed or a solver that hangs.  With an estimate of the run's
+steps (``Case.estimate``) the step limit is ``STEP_FACTOR`` times that, if lower."""
+
+STEP_FACTOR = 20
+STEP_FLOOR = 2_000
 
 
 def _signature(params: dict[str, Any]) -> tuple[tuple[str, str], ...]:
@@ -82,6 +95,9 @@ class Case:
     # Parameters the case no longer has that older records still carry: neither parameters nor
     # metrics, so ``mpsbench compare`` holds nothing against them (identity ignores them anyway).
     retired_params: tuple[str, ...] = ()
+    # The accuracy metrics of the cross-code table (:mod:`mpsbench.results.cross_code`: MPS
+    # backends and an outside code side by side; default: the first three of ``metrics``).
+    accuracy: tuple[str, ...] = ()
     # Where the case comes in reports and in ``validate all`` (lower first; equal: by name).
     # The built-ins use 10, 20, ...; a plugin case without one comes after them.
     order: float = 1000.0
@@ -160,6 +176,41 @@ class Case:
         None (the default) means unknown; the size guard then only counts runs
         (:mod:`mpsbench.run.estimate`, :mod:`mpsbench.results.guard`)."""
         return None
+
+    def run_limits(self, tier: str, params: dict[str, Any]) -> RunLimits:
+        """The default limits of one run at ``tier`` (:data:`TIER_LIMITS`, the step limit
+        tightened to ``STEP_FACTOR`` x the estimated steps when the case can estimate them)."""
+        base = TIER_LIMITS.get(tier, RunLimits())
+        try:
+            est = self.estimate(params)
+        except Exception:  # noqa: BLE001 - no estimate: the tier's limits
+            est = None
+        steps = base.max_steps
+        if est is not None and est.steps:
+            guess = max(STEP_FLOOR, STEP_FACTOR * int(est.steps))
+            steps = guess if steps is None else min(steps, guess)
+        return RunLimits(steps, base.max_wall_s)
+
+    # Case parameters that only set a Problem field a backend may ignore
+    # (mpsbench.run.protocol.IGNORED_FIELDS): parameter -> field.  A backend that ignores the
+    # field runs one parameter set of those that differ only in such parameters, and reports
+    # say the parameter does not apply to it.  The conventional names of the built-in cases;
+    # a case with other names sets its own.
+    model_params: dict[str, str] = {
+        "laplacian": "models.laplacian",
+        "weight": "models.weight",
+        "gradient": "models.gradient",
+        "re_ratio": "models.re_ratio",
+        "re_ratio_laplacian": "models.re_ratio_laplacian",
+        "gradient_correction": "models.gradient_correction",
+        "cfl": "time_stepping.cfl",
+        "c_nu": "time_stepping.c_nu",
+    }
+
+    def not_applicable(self, ignored_fields: set[str]) -> list[str]:
+        """This case's parameters a backend ignoring ``ignored_fields`` does not use."""
+        names = {p.name for p in self.params}
+        return [k for k, f in self.model_params.items() if k in names and f in ignored_fields]
 
     def checks(self, records: list[dict[str, Any]]) -> list[CaseCheck]:
         """The gates: pass/fail decisions that set the exit status of ``mpsbench validate``

@@ -76,13 +76,19 @@ def register(sub: Any) -> None:
 
 
 def _default_solvers() -> list[str]:
-    from mpsbench.run.protocol import SOLVERS
+    """Every available backend that can run the bench's workload (an outside code without
+    stabilization, such as PySPH or an external program, is timed with --pysph or by name)."""
+    from mpsbench.run.protocol import SOLVERS, Capabilities
+    from mpsbench.testing.problems import dam_break_problem
 
+    workload = dam_break_problem(l0=0.05, stabilization=True)
     out = []
     for name in SOLVERS.names():
         try:
             cls = SOLVERS.get(name)
         except Exception:  # noqa: BLE001 - an unavailable backend is simply not timed
+            continue
+        if getattr(cls, "capabilities", Capabilities()).gaps(workload):
             continue
         # a backend may leave the default set (the semi-implicit one: a 40k step takes seconds,
         # far beyond the default budget); --solver still times it

@@ -108,7 +108,7 @@ def cmd_solvers(args: argparse.Namespace) -> int:
         if r["available"]:
             print(f"{r['name']} {r['version']}  {r['description']}")
             for k, v in r["capabilities"].items():
-                print(f"    {k:<11} {', '.join(v) if isinstance(v, list) else v}")
+                print(f"    {k:<11} {(', '.join(v) or 'none') if isinstance(v, list) else v}")
             if r["options"]:
                 print(f"    options (--solver {r['name']}:key=value,...):")
             for o in r["options"]:

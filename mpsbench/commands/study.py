@@ -56,7 +56,8 @@ def register(sub: Any) -> None:
                    help="output folder (default: the file's 'out', else reports/studies/NAME)")
     r.add_argument("--force", action="store_true", help="re-run runs whose record exists")
     r.add_argument("--retry-failed", action="store_true",
-                   help="re-run runs recorded as failed (not diverged ones)")
+                   help="re-run runs recorded as failed, timed-out or crashed (not diverged "
+                   "or unsupported ones)")
     r.add_argument("--dry-run", action="store_true",
                    help="check the file and print the planned runs, run nothing")
     r.add_argument("--no-report", action="store_true",
@@ -64,11 +65,15 @@ def register(sub: Any) -> None:
     r.add_argument("--yes", action="store_true",
                    help="run a study above the size guard's thresholds (more than 5,000 runs, "
                    "or a run of more than 1,000,000 particles)")
+    from mpsbench.commands.validate import add_limit_options
+
+    add_limit_options(r)
     r.set_defaults(func=cmd_run)
     s = ssub.add_parser(
         "status", help="show done / failed / pending runs of a study folder",
         description="Count the runs of a study folder (or of a study file's default folder) "
-        "by state: done (completed or diverged), failed, pending.",
+        "by state: done (completed, diverged or unsupported), failed (failed, timed-out or "
+        "crashed), pending.",
     )
     s.add_argument("target", metavar="DIR|STUDY.toml", help="a study output folder or study file")
     s.add_argument("--out", default=None, metavar="DIR",
@@ -126,8 +131,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     executor_name = args.executor or ("dask" if args.scheduler else spec.executor) or "local"
     if scheduler and executor_name != "dask":
         raise UsageError("--scheduler goes with --executor dask")
+    from mpsbench.commands.validate import with_limits
+
     out = Path(args.out) if args.out else spec.default_out()
-    tasks = spec.tasks()
+    tasks = with_limits(spec.tasks(), args)
     cases = {c.name: c for c in spec.case_objects()}
     by_case = {name: sum(t.case == name for t in tasks) for name in cases}
     summary = ", ".join(f"{name} {n}" for name, n in by_case.items())
@@ -144,12 +151,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         return out / task.case
 
     def retry(record: dict[str, Any]) -> bool:
-        return bool(args.retry_failed) and record.get("status") == "failed"
+        return bool(args.retry_failed) and record.get("status") in BROKEN
 
     with folder_lock(out, f"mpsbench study run {args.study}"):
         write_plan(out, spec, tasks)
         try:
-            executor = make_executor(executor_name, jobs=jobs, scheduler=scheduler)
+            executor = make_executor(executor_name, jobs=jobs, scheduler=scheduler,
+                                     isolate=bool(args.isolate))
         except (ExecutorError, ValueError) as exc:
             raise UsageError(str(exc)) from None
         print(f"executor: {executor.describe()}", file=sys.stderr)
@@ -161,7 +169,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                 )
             except ExecutorError as exc:
                 raise UsageError(str(exc)) from None
-        failed_runs = [r for r in records if r.get("status") == "failed"]
+        failed_runs = [r for r in records if r.get("status") in BROKEN]
         any_check_failed = False
         if not args.no_report:
             for name, case in cases.items():
@@ -179,15 +187,22 @@ def cmd_run(args: argparse.Namespace) -> int:
                 print(line)
             any_check_failed |= any(c.passed is False for c in tol)
     counts = _count(records)
-    print(f"study {spec.name}: {counts['completed']} completed, {counts['diverged']} diverged, "
-          f"{counts['failed']} failed -> {out}")
+    shown = ", ".join(f"{n} {k}" for k, n in counts.items() if n or k in _SHOWN)
+    print(f"study {spec.name}: {shown} -> {out}")
     for r in failed_runs[:10]:
-        print(f"  failed {r['run_id']}: {r.get('reason', '')}")
+        print(f"  {r.get('status')} {r['run_id']}: {r.get('reason', '')}")
     return 1 if failed_runs or any_check_failed else 0
 
 
+BROKEN = ("failed", "timed-out", "crashed")
+"""Statuses that make ``study run`` exit 1 (a diverged run is a result; an unsupported one
+was not made)."""
+_SHOWN = ("completed", "diverged", "failed")
+
+
 def _count(records: list[dict[str, Any]]) -> dict[str, int]:
-    out = {"completed": 0, "diverged": 0, "failed": 0}
+    out = {"completed": 0, "diverged": 0, "failed": 0, "timed-out": 0, "crashed": 0,
+           "unsupported": 0}
     for r in records:
         out[r.get("status", "failed") if r.get("status") in out else "failed"] += 1
     return out
@@ -212,7 +227,7 @@ def study_status(out: Path, tasks: list[dict[str, Any]] | None = None) -> dict[s
         if plan_path.is_file():
             tasks = _read_plan(plan_path)
     state: dict[str, list[dict[str, Any]]] = {
-        "completed": [], "diverged": [], "failed": [], "pending": []
+        "completed": [], "diverged": [], "unsupported": [], "failed": [], "pending": []
     }
     record_files = sorted(out.glob("runs/*.json")) + sorted(out.glob("*/runs/*.json"))
     temp_files = len(list(out.glob("runs/.*.tmp")) + list(out.glob("*/runs/.*.tmp")))
@@ -241,13 +256,14 @@ def study_status(out: Path, tasks: list[dict[str, Any]] | None = None) -> dict[s
             _file(state, rec)
         else:
             extra += 1
-    done = len(state["completed"]) + len(state["diverged"])
+    done = len(state["completed"]) + len(state["diverged"]) + len(state["unsupported"])
     return {
         "folder": str(out),
         "planned": len(tasks) if tasks is not None else None,
         "done": done,
         "completed": len(state["completed"]),
         "diverged": len(state["diverged"]),
+        "unsupported": len(state["unsupported"]),
         "failed": len(state["failed"]),
         "pending": len(state["pending"]) if tasks is not None else None,
         "not_in_plan": extra,
@@ -289,7 +305,7 @@ def _read_plan(path: Path) -> list[dict[str, Any]]:
 
 def _file(state: dict[str, list[dict[str, Any]]], rec: dict[str, Any]) -> None:
     status = rec.get("status")
-    key = status if status in ("completed", "diverged") else "failed"
+    key = status if status in ("completed", "diverged", "unsupported") else "failed"
     state[key].append({"run_id": rec.get("run_id", ""), "case": rec.get("case", ""),
                        "reason": rec.get("reason", "")})
 
@@ -318,7 +334,9 @@ def cmd_status(args: argparse.Namespace) -> int:
         print(f"{out}: {st['planned']} runs planned")
     else:
         print(f"{out}: no {PLAN_FILE}; counting the records found (pending unknown)")
-    print(f"  done     {st['done']:>5}  ({st['completed']} completed, {st['diverged']} diverged)")
+    extra = f", {st['unsupported']} unsupported" if st["unsupported"] else ""
+    print(f"  done     {st['done']:>5}  ({st['completed']} completed, {st['diverged']} diverged"
+          f"{extra})")
     print(f"  failed   {st['failed']:>5}")
     if st["pending"] is not None:
         print(f"  pending  {st['pending']:>5}")

@@ -91,6 +91,7 @@ def register(sub: Any) -> None:
     quiet.add_argument("--verbose", action="store_true",
                        help="one plain line per run even on a terminal (default there: a bar "
                        "with the share of the estimated work done and the ETA)")
+    add_limit_options(p)
     p.set_defaults(func=cmd_validate)
 
 
@@ -183,17 +184,60 @@ def write_paraview(folder: Path, records: list[dict[str, Any]], root: Path) -> N
 # ---- resuming and the size guard (issue #19): --retry-failed, --yes
 def add_run_safety_options(p: Any) -> None:
     p.add_argument("--retry-failed", action="store_true",
-                   help="re-run the runs recorded failed, diverged or crashed (and only those) "
-                   "among those whose record exists")
+                   help="re-run the runs recorded failed, diverged, timed-out or crashed (and "
+                   "only those; not unsupported ones) among those whose record exists")
     p.add_argument("--yes", action="store_true",
                    help="run a plan above the size guard's thresholds (more than 5,000 runs, "
                    "or a run of more than 1,000,000 particles)")
 
 
+def add_limit_options(p: Any) -> None:
+    """``--max-steps``, ``--max-wall``, ``--isolate`` (validate and study run)."""
+    p.add_argument("--max-steps", type=_limit(int), default=None, metavar="N",
+                   help="stop a solver run after N time steps, recorded timed-out (default: "
+                   "per tier, 20x the case's estimate at most; 0: no limit)")
+    p.add_argument("--max-wall", type=_limit(float), default=None, metavar="SECONDS",
+                   help="stop a run after this many wall-clock seconds, recorded timed-out "
+                   "(default per tier: smoke 600, quick 10800, paper 172800; 0: no limit); a "
+                   "step that never returns is killed in its worker process")
+    p.add_argument("--isolate", action="store_true",
+                   help="run every run in a supervised child process even with --jobs 1, so "
+                   "a crash (segfault) or a hang costs only that run (solvers that need it, "
+                   "such as PySPH, always are)")
+
+
+def _limit(kind: type) -> Any:
+    def parse(text: str) -> Any:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+        if not value >= 0 or value != value or value == float("inf"):
+            raise argparse.ArgumentTypeError(f"{text!r} is not allowed: a number >= 0 "
+                                             "(0: no limit)")
+        return value
+
+    return parse
+
+
+def with_limits(tasks: list[Task], args: argparse.Namespace) -> list[Task]:
+    """The tasks with the command line's run limits and isolation set."""
+    import dataclasses
+
+    changes: dict[str, Any] = {}
+    if getattr(args, "max_steps", None) is not None:
+        changes["max_steps"] = args.max_steps
+    if getattr(args, "max_wall", None) is not None:
+        changes["max_wall_s"] = args.max_wall
+    if getattr(args, "isolate", False):
+        changes["isolate"] = True
+    return [dataclasses.replace(t, **changes) for t in tasks] if changes else tasks
+
+
 def retry_rule(args: argparse.Namespace) -> Any:
     if not args.retry_failed:
         return None
-    return lambda record: record.get("status") != "completed"
+    return lambda record: record.get("status") not in ("completed", "unsupported")
 
 
 def lock_command(args: argparse.Namespace) -> str:
@@ -299,7 +343,7 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
     overrides = parse_overrides(case, args.set)
     check_run_count(grid_size(case, args.tier, overrides) * len(solvers), args.yes,
                     f"{case.name} at tier {args.tier}")
-    tasks = plan(case, solvers, args.tier, overrides)
+    tasks = with_limits(plan(case, solvers, args.tier, overrides), args)
     frames = vtu_frames(args)
     for task in tasks:
         task.frames = frames
@@ -368,6 +412,7 @@ def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
         tasks += case_tasks
         print(f"{name}: {len(case_tasks)} runs", file=sys.stderr)
     guard_tasks(tasks, jobs=jobs, yes=args.yes)
+    tasks = with_limits(tasks, args)
     frames = vtu_frames(args)
     for task in tasks:
         task.frames = frames
@@ -483,6 +528,8 @@ def print_verdicts(sections: list[CaseSection]) -> None:
             r = s.rendered
             print(f"{verdict(r.passed and not sec.error)} {sec.name} [{s.solver}]: "
                   f"{len(r.records)} runs, {r.completed} completed")
+            if r.note:
+                print(f"  ({r.note})")
             for line in plain_check_lines(r.checks):
                 print("  " + line)
             for why in r.failures:

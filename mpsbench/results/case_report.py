@@ -37,7 +37,7 @@ from mpsbench.cases.checks import gates as gates_of
 from mpsbench.errors import InputFileError
 from mpsbench.results.escape import md_escape, md_frame
 from mpsbench.results.paths import component
-from mpsbench.results.records import COMMON_COLUMNS, atomic_write_text, load_arrays
+from mpsbench.results.records import COMMON_COLUMNS, NOT_RUN, atomic_write_text, load_arrays
 
 
 def records_frame(records: list[dict[str, Any]], case: Case | None = None) -> pd.DataFrame:
@@ -93,6 +93,11 @@ class Rendered:
         return sum(1 for r in self.records if r.get("status") == "completed")
 
     @property
+    def unsupported(self) -> list[dict[str, Any]]:
+        """The runs the solver's capabilities excluded (never a failure)."""
+        return [r for r in self.records if r.get("status") in NOT_RUN]
+
+    @property
     def gates(self) -> list[CaseCheck]:
         return gates_of(self.checks)
 
@@ -107,13 +112,26 @@ class Rendered:
 
     @property
     def failures(self) -> list[str]:
-        """Why this set fails its gates (empty when it passes; refuted claims are not here)."""
+        """Why this set fails its gates (empty when it passes; refuted claims are not here).
+        Unsupported runs are not failures: a set whose every run is unsupported passes with
+        nothing decided (:attr:`note`)."""
         out = [f"gate failed: {c.name}" for c in self.gates if c.passed is False]
         if not self.records:
             out.append("no runs")
-        elif not self.completed:
+        elif not self.completed and len(self.unsupported) < len(self.records):
             out.append("no run completed")
         return out
+
+    @property
+    def note(self) -> str:
+        """What the unsupported runs mean for this set ("" when there are none)."""
+        un = self.unsupported
+        if not un:
+            return ""
+        why = str(un[0].get("reason", "")).split(": ", 1)[-1]
+        if len(un) == len(self.records):
+            return f"no supported run: all {len(un)} runs unsupported ({why})"
+        return f"{len(un)} of {len(self.records)} runs unsupported ({why})"
 
     @property
     def passed(self) -> bool:
@@ -170,7 +188,9 @@ def render_case_outputs(
     matplotlib.use("Agg")
     figures = _draw_figures(case, records, source, fdir) if records else []
 
-    checks = (case.checks(records) + case.claims(records)) if records else []
+    # the gates and claims judge the runs that were made: an unsupported run is no evidence
+    made = [r for r in records if r.get("status") not in NOT_RUN]
+    checks = (case.checks(made) + case.claims(made)) if made else []
     atomic_write_text(outdir / "checks.json",
                       json.dumps([c.to_json() for c in checks], indent=1))
     findings = case.findings(records) if records else ""
@@ -277,6 +297,16 @@ def render_report(
     lines += [md_escape(f"{n} runs ({status}); tier {', '.join(tiers)}; solver "
                         f"{', '.join(solvers)}."), ""]
     failed = [r for r in records if r.get("status") != "completed"]
+    unsupported = [r for r in records if r.get("status") in NOT_RUN]
+    if unsupported and len(unsupported) == len(records):
+        lines += ["No supported run: the solver's capabilities exclude every run of this case "
+                  "at this tier (not a failure; nothing is decided).", ""]
+    na = sorted({n for r in records for n in str(r.get("not_applicable") or "").split(",") if n})
+    if na:
+        who = ", ".join(sorted({str(r.get("solver")) for r in records if r.get("not_applicable")}))
+        lines += [md_escape(f"Parameters that do not apply to {who} (its own kernels and time "
+                            "step): " + ", ".join(na) + ".  Its runs hold them at the case "
+                            "defaults, and checks that name them judge those runs."), ""]
     if failed:
         lines += ["Runs that did not complete:", ""]
         lines += [f"- `{r['run_id']}`: {md_escape(r.get('status'))}: "

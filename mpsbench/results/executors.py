@@ -14,7 +14,9 @@ does the skip-if-done bookkeeping and the progress count; the executor only runs
 
 A run that raises inside the case is recorded ``failed`` by
 :func:`mpsbench.results.records.execute_task`
-itself; a worker that dies (killed, out of memory) fails only its own run, with the reason.
+itself; a worker that dies (a segfault, killed, out of memory) makes only its own run
+``crashed``, with the signal; a local worker whose step never returns is killed past the run's
+wall-clock limit and its run recorded ``timed-out`` (:mod:`.supervise`).
 """
 
 from __future__ import annotations
@@ -22,11 +24,8 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import signal
-import sys
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +36,9 @@ from mpsbench.results.records import (
     atomic_write_bytes,
     atomic_write_text,
     execute_task,
+    needs_isolation,
 )
+from mpsbench.results.supervise import run_supervised
 
 FolderFn = Callable[[Task], Path]
 """Maps a task to the folder whose ``runs/`` receives its record."""
@@ -83,14 +84,22 @@ def _write_crash(
 
 
 class LocalExecutor(Executor):
-    """Runs in this process (``jobs=1``) or in ``jobs`` worker processes on this machine."""
+    """Runs in this process (``jobs=1``) or on ``jobs`` supervised worker processes on this
+    machine (:mod:`.supervise`: a crash or a hang costs only its own run).
+
+    With one job, the runs go to one supervised worker process instead when ``isolate`` is set
+    or a run's solver declares ``isolate`` (:func:`mpsbench.results.records.needs_isolation`).
+    In this process the run limits are checked between steps only: a step that never returns
+    can only be stopped in a worker process.
+    """
 
     name = "local"
 
-    def __init__(self, jobs: int = 1) -> None:
+    def __init__(self, jobs: int = 1, *, isolate: bool = False) -> None:
         if not isinstance(jobs, int) or isinstance(jobs, bool) or jobs < 1:
             raise ValueError(f"LocalExecutor: jobs = {jobs!r} is not allowed: an integer >= 1")
         self.jobs = jobs
+        self.isolate = isolate
 
     def describe(self) -> str:
         return f"local ({self.jobs} process{'es' if self.jobs > 1 else ''})"
@@ -98,65 +107,16 @@ class LocalExecutor(Executor):
     def run(
         self, tasks: Sequence[Task], folder: FolderFn, env: dict[str, Any]
     ) -> Iterator[tuple[Task, dict[str, Any]]]:
-        if self.jobs <= 1 or len(tasks) <= 1:
+        if not tasks:
+            return
+        inline = self.jobs <= 1 and not self.isolate and not any(
+            needs_isolation(t) for t in tasks)
+        if inline:
             for task in tasks:
                 yield task, execute_task(task, str(folder(task)), env)
             return
-        # Each worker runs single-threaded numerics; the pool gives the parallelism.
-        pool = ProcessPoolExecutor(max_workers=self.jobs, initializer=_die_with_parent,
-                                   initargs=(os.getpid(),))
-        interrupted = True
-        try:
-            pending: dict[Future[dict[str, Any]], Task] = {
-                pool.submit(execute_task, t, str(folder(t)), env): t for t in tasks
-            }
-            while pending:
-                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for fut in finished:
-                    task = pending.pop(fut)
-                    try:
-                        rec = fut.result()
-                    except Exception as exc:  # noqa: BLE001 - a dead worker fails its run only
-                        rec = _write_crash(task, folder, exc, env)
-                    yield task, rec
-            interrupted = False
-        finally:
-            if interrupted:
-                # Ctrl-C or the consumer stopped: end the workers now rather than let them
-                # finish the runs already handed to them (minutes each for a real case).  A run
-                # cut short leaves no record (writes are atomic) and runs again next time.
-                _terminate_workers(pool)
-            pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _die_with_parent(parent: int) -> None:
-    """In a worker: end when the study process ends, even by SIGKILL (Linux; elsewhere a no-op).
-
-    Without this, workers of a killed study go on with the runs already handed to them.
-    """
-    if not sys.platform.startswith("linux"):
-        return
-    try:
-        import ctypes
-
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except (OSError, AttributeError):
-        return
-    if os.getppid() != parent:  # the parent died before the call: nobody will signal us
-        os._exit(1)
-
-
-def _terminate_workers(pool: ProcessPoolExecutor) -> None:
-    # ProcessPoolExecutor has no public way to stop busy workers before Python 3.14
-    # (terminate_workers); its worker table is the documented-in-source ``_processes``.
-    stop = getattr(pool, "terminate_workers", None)
-    if callable(stop):
-        stop()
-        return
-    for proc in list((getattr(pool, "_processes", None) or {}).values()):
-        if proc.is_alive():
-            proc.terminate()
+        # Each worker runs single-threaded numerics; the workers give the parallelism.
+        yield from run_supervised(tasks, folder, env, self.jobs)
 
 
 # --------------------------------------------------------------------------- dask
@@ -364,15 +324,17 @@ class _WorkerWatch:
 
 
 def make_executor(
-    name: str, *, jobs: int = 1, scheduler: str | None = None, worker_wait: float = 120.0
+    name: str, *, jobs: int = 1, scheduler: str | None = None, isolate: bool = False,
+    worker_wait: float = 120.0,
 ) -> Executor:
-    """An executor by name: ``local`` (``jobs`` processes) or ``dask`` (``scheduler`` address,
-    or a local cluster of ``jobs`` workers when none is given; ``worker_wait``: seconds without
-    any worker before the study stops)."""
+    """An executor by name: ``local`` (``jobs`` processes; ``isolate``: child processes even
+    with one job) or ``dask`` (``scheduler`` address, or a local cluster of ``jobs`` workers
+    when none is given; every run is in a worker process there; ``worker_wait``: seconds
+    without any worker before the study stops)."""
     if name == "local":
         if scheduler:
             raise ValueError("a scheduler address only goes with the dask executor")
-        return LocalExecutor(jobs)
+        return LocalExecutor(jobs, isolate=isolate)
     if name == "dask":
         return DaskExecutor(scheduler, n_workers=jobs if scheduler is None else None,
                             worker_wait=worker_wait)

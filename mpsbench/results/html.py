@@ -289,6 +289,8 @@ def rendered_html(r: Rendered, out: Path, *, checks: bool = True) -> list[str]:
     html_out: list[str] = []
     if r.failures and checks:
         html_out.append(f'<p class="error">Fails: {esc("; ".join(r.failures))}.</p>')
+    if r.note:
+        html_out.append(f'<p class="meta">{esc(r.note)}.</p>')
     first, rest = figures_html(r.ordered_figures(), out)
     html_out += first
     if r.findings.strip():
@@ -320,7 +322,8 @@ def combined_html(sec: CaseSection, out: Path) -> list[str]:
     """With several solvers: the case's all-solver figures and the metrics side by side."""
     figures = sec.combined.ordered_figures() if sec.combined is not None else []
     has_table = sec.by_solver is not None and not sec.by_solver.empty
-    if not figures and not has_table:
+    has_cross = sec.cross_code is not None and not sec.cross_code.empty
+    if not figures and not has_table and not has_cross:
         return []
     body = [f'<section class="solver" id="{anchor(sec.name, "all-solvers")}">',
             "<h3>all solvers compared</h3>"]
@@ -328,6 +331,9 @@ def combined_html(sec: CaseSection, out: Path) -> list[str]:
     body += first + rest
     if sec.by_solver is not None and has_table:
         body += tables_html({"metrics by solver": sec.by_solver}, None)
+    if sec.cross_code is not None and has_cross:
+        body += ["<h4>Cross-code: MPS backends and outside codes</h4>",
+                 f"<p>{esc(sec.cross_code_caption)}</p>", table_html(sec.cross_code, index=False)]
     return body + ["</section>"]
 
 

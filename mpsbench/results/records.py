@@ -7,8 +7,10 @@ Output folder layout::
     OUT/runs/<run_id>.npz    arrays the case keeps for its figures (profiles, snapshots),
                              and the frames of --vtu (mpsbench.results.frames says what it holds)
 
-Failed and diverged runs are recorded with their reason.  Every record carries the common columns
-documented in docs/columns.md.  Sweeps over many tasks are :mod:`mpsbench.results.sweep`.
+Failed, diverged, unsupported, timed-out and crashed runs are recorded with their reason (a run
+that stopped early also with the simulated time it reached, ``sim_time_s``).  Every record
+carries the common columns documented in docs/columns.md.  Sweeps over many tasks are
+:mod:`mpsbench.results.sweep`.
 """
 
 from __future__ import annotations
@@ -34,14 +36,18 @@ from mpsbench.results.frames import frame_arrays
 from mpsbench.results.identity import HASH_COLUMN, run_hash, task_hash
 from mpsbench.run.frames import keeping_frames
 from mpsbench.run.protocol import Status
+from mpsbench.run.runner import ProgressSink, RunLimits, RunResult, task_context
 from mpsbench.run.specs import solver_spec
 
 COMMON_COLUMNS = (
     "case", "solver", "solver_options", "solver_version", "tier", "run_id", HASH_COLUMN, "status",
     "reason",
-    "wall_time_s", "particle_steps_per_s", "n_particles", "n_steps",
+    "wall_time_s", "particle_steps_per_s", "n_particles", "n_steps", "sim_time_s",
 )
-RECORD_STATUSES = (Status.COMPLETED.value, Status.DIVERGED.value, Status.FAILED.value)
+RECORD_STATUSES = (Status.COMPLETED.value, Status.DIVERGED.value, Status.FAILED.value,
+                   Status.UNSUPPORTED.value, Status.TIMED_OUT.value, Status.CRASHED.value)
+NOT_RUN = (Status.UNSUPPORTED.value,)
+"""Statuses of runs that were not made at all: they never count against a case."""
 RUN_ID_CHARS = "letters, digits, '=', '.', '_', '+', '-', starting with a letter or digit"
 _RUN_ID_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9=._+-]{0,199}")
 
@@ -97,7 +103,12 @@ def _short(v: Any) -> str:
 @dataclass
 class Task:
     """One planned run.  ``run_hash`` (its identity, see :mod:`.identity`) is computed from
-    case, solver and parameters unless given."""
+    case, solver and parameters unless given.
+
+    ``max_steps`` / ``max_wall_s`` override the case's default run limits at the tier
+    (:meth:`mpsbench.cases.Case.run_limits`; 0 = no limit); they are not part of the identity.
+    ``isolate``: run it in a supervised child process even with one job.
+    """
 
     case: str
     solver: str  # the canonical solver spec: NAME or NAME:key=value,... (non-default options)
@@ -105,6 +116,12 @@ class Task:
     params: dict[str, Any]
     run_id: str
     run_hash: str = ""
+    max_steps: int | None = None
+    max_wall_s: float | None = None
+    isolate: bool = False
+    # case parameters that do not apply to the solver (it ignores what they set): at their
+    # defaults in ``params``, recorded in the ``not_applicable`` column
+    not_applicable: tuple[str, ...] = ()
     # an output option, not part of the run's identity: frames to keep for ParaView
     # (validate --vtu; mpsbench.run.frames), stored in runs/<run_id>.npz
     frames: int = 0
@@ -112,6 +129,30 @@ class Task:
     def __post_init__(self) -> None:
         if not self.run_hash:
             self.run_hash = task_hash(self.case, self.solver, self.params)
+
+
+def task_limits(task: Task) -> RunLimits:
+    """The run limits of ``task``: its own where set (0 = none), else the case's default."""
+    try:
+        default = get_case(task.case).run_limits(task.tier, dict(task.params))
+    except Exception:  # noqa: BLE001 - an unknown case fails in execute_task with the reason
+        default = RunLimits()
+    steps = default.max_steps if task.max_steps is None else (task.max_steps or None)
+    wall = default.max_wall_s if task.max_wall_s is None else (task.max_wall_s or None)
+    return RunLimits(steps, wall)
+
+
+def needs_isolation(task: Task) -> bool:
+    """Whether ``task`` runs in a supervised child process: asked for, or its solver declares
+    ``isolate`` (native code that can crash or hang the process)."""
+    if task.isolate:
+        return True
+    from mpsbench.run.specs import get_solver_class
+
+    try:
+        return bool(getattr(get_solver_class(task.solver), "isolate", False))
+    except Exception:  # noqa: BLE001 - an unloadable solver fails its run with the reason
+        return False
 
 
 def solver_columns(spec: str) -> dict[str, str]:
@@ -170,52 +211,86 @@ def environment(solvers: Sequence[str] = ()) -> dict[str, Any]:
     return env
 
 
-def execute_task(task: Task, outdir: str, env: dict[str, Any]) -> dict[str, Any]:
+def _outcome(results: list[RunResult]) -> tuple[Status, str]:
+    """The record's status from its solver runs: the first that did not complete decides; an
+    unsupported one wins over the others (the run was not made as asked)."""
+    for r in results:
+        if r.status == Status.UNSUPPORTED:
+            return r.status, r.reason
+    for r in results:
+        if r.status != Status.COMPLETED:
+            return r.status, r.reason
+    return Status.COMPLETED, ""
+
+
+def _run_columns(results: list[RunResult]) -> dict[str, Any]:
+    wall = sum(r.wall_time_s for r in results)
+    psteps = sum(r.particle_steps for r in results)
+    return dict(
+        solver_version=next((r.solver_version for r in results if r.solver_version), ""),
+        wall_time_s=round(wall, 4),
+        particle_steps_per_s=round(psteps / wall, 1) if wall > 0 else 0.0,
+        n_particles=max((r.n_particles for r in results), default=0),
+        n_steps=sum(r.n_steps for r in results),
+        n_solver_runs=len(results),
+        sim_time_s=results[-1].time if results else 0.0,
+    )
+
+
+def base_record(task: Task) -> dict[str, Any]:
+    """The identity columns every record of ``task`` starts with."""
+    return {
+        "case": task.case, **solver_columns(task.solver), "solver_version": "",
+        "tier": task.tier, "run_id": task.run_id, HASH_COLUMN: task.run_hash, **task.params,
+        **({"not_applicable": ",".join(task.not_applicable)} if task.not_applicable else {}),
+    }
+
+
+def execute_task(task: Task, outdir: str, env: dict[str, Any],
+                 progress: ProgressSink | None = None,
+                 progress_every: float = 0.25) -> dict[str, Any]:
     """Run one task, write its record (and arrays) atomically, return the record.
 
-    Never raises for a failing run: the record says ``failed`` with the reason.
+    Never raises for a failing run: the record says ``failed`` (or ``diverged``,
+    ``unsupported``, ``timed-out``) with the reason.  The task's run limits
+    (:func:`task_limits`) apply to every solver run of the case; ``progress(t, steps)`` hears
+    how far the current solver run got, at most every ``progress_every`` seconds (a
+    supervising process keeps the last report, to say where a run that crashed or never
+    returned was stopped).
     """
     runs = Path(outdir) / "runs"
     runs.mkdir(parents=True, exist_ok=True)
-    record: dict[str, Any] = {
-        "case": task.case, **solver_columns(task.solver), "solver_version": "",
-        "tier": task.tier, "run_id": task.run_id, HASH_COLUMN: task.run_hash, **task.params,
-    }
+    record = base_record(task)
     t0 = time.perf_counter()
     arrays: dict[str, np.ndarray] = {}
-    try:
-        case = get_case(task.case)
-        with keeping_frames(task.frames):
-            out = case.execute(dict(task.params), task.solver)
-        results = out.results
-        statuses = [r.status for r in results]
-        status = Status.COMPLETED
-        reason = ""
-        for r in results:
-            if r.status != Status.COMPLETED:
-                status, reason = r.status, r.reason
-                break
-        wall = sum(r.wall_time_s for r in results)
-        psteps = sum(r.particle_steps for r in results)
-        record.update(
-            status=status.value,
-            reason=reason,
-            solver_version=results[0].solver_version if results else "",
-            wall_time_s=round(wall, 4),
-            particle_steps_per_s=round(psteps / wall, 1) if wall > 0 else 0.0,
-            n_particles=max((r.n_particles for r in results), default=0),
-            n_steps=sum(r.n_steps for r in results),
-            n_solver_runs=len(statuses),
-        )
-        record.update(solver_counters(results))
-        record.update({k: _plain(v) for k, v in out.metrics.items()})
-        arrays = {**out.arrays, **frame_arrays(results)}
-    except Exception as exc:  # noqa: BLE001 - a broken case or solver is recorded, not fatal
-        record.update(
-            status=Status.FAILED.value, reason=f"{type(exc).__name__}: {exc}{where(exc)}",
-            wall_time_s=round(time.perf_counter() - t0, 4), particle_steps_per_s=0.0,
-            n_particles=0, n_steps=0,
-        )
+    limits = task_limits(task)
+    with task_context(limits, progress) as ctx:
+        ctx.every_s = progress_every
+        try:
+            case = get_case(task.case)
+            with keeping_frames(task.frames):
+                out = case.execute(dict(task.params), task.solver)
+            # every solver run of the case, also those it did not return (as a refusal's)
+            results = out.results + [r for r in ctx.results if not any(r is o for o in out.results)]
+            status, reason = _outcome(results)
+            record.update(status=status.value, reason=reason, **_run_columns(results))
+            record.update(solver_counters(results))
+            if status != Status.UNSUPPORTED:
+                record.update({k: _plain(v) for k, v in out.metrics.items()})
+                arrays = {**out.arrays, **frame_arrays(results)}
+        except Exception as exc:  # noqa: BLE001 - a broken case or solver is recorded, not fatal
+            status, reason = _outcome(ctx.results)
+            if status in (Status.UNSUPPORTED, Status.TIMED_OUT):
+                # the case tripped over the empty or short probes of a refused or stopped run:
+                # the refusal (or the limit) is the reason, not the case's error
+                record.update(status=status.value, reason=reason, **_run_columns(ctx.results))
+            else:
+                record.update(
+                    status=Status.FAILED.value, reason=f"{type(exc).__name__}: {exc}{where(exc)}",
+                    **_run_columns(ctx.results),
+                )
+                record["wall_time_s"] = round(time.perf_counter() - t0, 4)
+                record["particle_steps_per_s"] = 0.0
     record["elapsed_s"] = round(time.perf_counter() - t0, 4)
     record.update(env)
     record["solver_commit"] = _solver_commit(task.solver)
@@ -439,10 +514,21 @@ def load_arrays(outdir: str | Path, rid: str) -> dict[str, np.ndarray]:
 
 
 def _crashed(task: Task, exc: BaseException, env: dict[str, Any]) -> dict[str, Any]:
-    return {
-        "case": task.case, **solver_columns(task.solver), "solver_version": "",
-        "tier": task.tier, "run_id": task.run_id, HASH_COLUMN: task.run_hash, **task.params,
-        "status": Status.FAILED.value,
-        "reason": f"worker process died: {type(exc).__name__}: {exc}", "wall_time_s": 0.0,
-        "particle_steps_per_s": 0.0, "n_particles": 0, "n_steps": 0, **env,
+    return stopped_record(task, Status.CRASHED,
+                          f"worker process died: {type(exc).__name__}: {exc}", env)
+
+
+def stopped_record(task: Task, status: Status, reason: str, env: dict[str, Any], *,
+                   sim_time_s: float | None = None, n_steps: int = 0, elapsed_s: float = 0.0,
+                   signal: str = "") -> dict[str, Any]:
+    """The record of a run its process could not record itself: it ``crashed`` (the process
+    died, by ``signal`` when known) or was killed ``timed-out`` (a step never returned); the
+    time and steps it had reported reaching, when known."""
+    rec = {
+        **base_record(task), "status": status.value, "reason": reason, "wall_time_s": elapsed_s,
+        "particle_steps_per_s": 0.0, "n_particles": 0, "n_steps": n_steps,
+        "sim_time_s": sim_time_s, "elapsed_s": round(elapsed_s, 4),
     }
+    if signal:
+        rec["signal"] = signal
+    return {**rec, **env}

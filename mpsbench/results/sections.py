@@ -42,6 +42,10 @@ class CaseSection:
     solvers: list[SolverSection] = field(default_factory=list)
     combined: Rendered | None = None
     by_solver: pd.DataFrame | None = None  # with several solvers: metrics side by side
+    # with an outside code among them: accuracy and speed per physical parameter set
+    # (:mod:`.cross_code`), also written to cross-code.csv / cross-code.md in the case folder
+    cross_code: pd.DataFrame | None = None
+    cross_code_caption: str = ""
     error: str = ""
 
     @property
@@ -92,12 +96,31 @@ def render_case(case: Case, records: list[dict[str, Any]], folder: Path) -> Case
         return section
     section.combined = render_case_outputs(case, view, folder)
     section.by_solver = solver_table(case, view)
+    _cross_code(section, case, view, folder)
     for solver in solvers:
         recs = [r for r in view if r.get("solver") == solver]
         sub = inside(folder, folder / "by-solver" / component("solver", solver_folder(solver)))
         out = render_case_outputs(case, recs, sub, arrays_dir=folder)
         section.solvers.append(SolverSection(solver, _version(recs), out))
     return section
+
+
+def _cross_code(section: CaseSection, case: Case, records: list[dict[str, Any]],
+                folder: Path) -> None:
+    from mpsbench.results.case_report import markdown_table
+    from mpsbench.results.cross_code import cross_code_caption, cross_code_table
+    from mpsbench.results.escape import md_escape
+    from mpsbench.results.records import atomic_write_text
+
+    table = cross_code_table(case, records)
+    if table.empty:
+        return
+    section.cross_code = table
+    section.cross_code_caption = cross_code_caption(case, records)
+    atomic_write_text(folder / "cross-code.csv", table.to_csv(index=False))
+    atomic_write_text(folder / "cross-code.md",
+                      f"# {md_escape(case.title or case.name)}: cross-code table\n\n"
+                      f"{md_escape(section.cross_code_caption)}\n\n{markdown_table(table)}")
 
 
 def solver_table(case: Case, records: list[dict[str, Any]]) -> pd.DataFrame:
@@ -187,7 +210,9 @@ def overview_rows(sections: list[CaseSection]) -> list[dict[str, Any]]:
             rows.append({
                 "case": sec.name, "solver": s.solver, "runs": len(r.records),
                 "completed": r.completed, "not completed": len(r.records) - r.completed,
-                "gates passed": f"{n_ok}/{n_dec}" if r.gates else "(none)",
+                "gates passed": f"{n_ok}/{n_dec}" if r.gates else (
+                    "(no supported run)" if r.records and len(r.unsupported) == len(r.records)
+                    else "(none)"),
                 "claims": claim_counts(r.claims),
                 "result": verdict(r.passed and not sec.error),
                 "wall time [s]": round(sum(float(x.get("wall_time_s") or 0) for x in r.records), 1),

@@ -66,6 +66,9 @@ def render_summary(sections: list[CaseSection], manifest: dict[str, Any], out: P
             lines += _rendered_lines(r, out)
         if sec.by_solver is not None and not sec.by_solver.empty:
             lines += ["### all solvers: metrics side by side", "", markdown_table(sec.by_solver)]
+        if sec.cross_code is not None and not sec.cross_code.empty:
+            lines += ["### cross-code: MPS backends and outside codes", "",
+                      md_escape(sec.cross_code_caption), "", _md(sec.cross_code)]
         if sec.folder is not None and (sec.folder / "report.md").exists():
             rel = _rel(sec.folder / "report.md", out)
             lines += [f"Full report: [{rel}]({rel})", ""]
@@ -76,6 +79,8 @@ def _rendered_lines(r: Rendered, out: Path) -> list[str]:
     lines: list[str] = []
     if r.failures:
         lines += [md_escape("Fails: " + "; ".join(r.failures) + "."), ""]
+    if r.note:
+        lines += [md_escape(r.note[0].upper() + r.note[1:] + "."), ""]
     if r.findings.strip():
         lines += [md_escape(r.findings.strip()), ""]
     if r.gates:

@@ -4,9 +4,10 @@ per run (:mod:`mpsbench.results.records`).
 A run is done when a record of the same run -- the same identity hash (:mod:`.identity`): case,
 solver and full parameter set, whatever the record's file is called -- exists in its folder; it
 is skipped unless ``force`` (or ``retry`` says so).  A record file that cannot be read counts as
-not done: the run runs again and its new record replaces the broken file.  Failed and diverged
-runs are recorded with their reason and the sweep goes on.  Runs execute on an executor
-(:mod:`.executors`): worker processes (``jobs``), in-process (``jobs=1``) or a dask cluster.
+not done: the run runs again and its new record replaces the broken file.  Failed, diverged,
+unsupported, timed-out and crashed runs are recorded with their reason and the sweep goes on.
+Runs execute on an executor (:mod:`.executors`): supervised worker processes (``jobs``),
+in-process (``jobs=1``) or a dask cluster.
 """
 
 from __future__ import annotations
@@ -26,13 +27,39 @@ from mpsbench.results.records import Task, canonical_solver, environment, load_r
 def plan(
     case: Case, solvers: Sequence[str], tier: str, overrides: dict[str, Sequence[Any]] | None = None
 ) -> list[Task]:
-    """The tasks of a case's tier for each solver spec (``numba``, ``numba:threads=1``)."""
+    """The tasks of a case's tier for each solver spec (``numba``, ``numba:threads=1``).
+
+    For a backend that ignores some settings (``Capabilities.ignores``, e.g. an outside code
+    with its own kernels), the case parameters that only set those (``Case.not_applicable``)
+    are put back to their defaults and the parameter sets that then coincide run once; the
+    tasks carry the names, and the records say they do not apply.
+    """
     tasks = []
     sets = case.expand(tier, overrides)
     for solver in dict.fromkeys(canonical_solver(s) for s in solvers):
-        ids = run_ids(case.name, solver, sets, case.defaults())
-        tasks += [Task(case.name, solver, tier, p, rid) for p, rid in zip(sets, ids, strict=True)]
+        na = tuple(case.not_applicable(_ignored_fields(solver)))
+        mine = _collapse(sets, na, case.defaults()) if na else sets
+        ids = run_ids(case.name, solver, mine, case.defaults())
+        tasks += [Task(case.name, solver, tier, p, rid, not_applicable=na)
+                  for p, rid in zip(mine, ids, strict=True)]
     return tasks
+
+
+def _ignored_fields(solver: str) -> set[str]:
+    from mpsbench.run.specs import get_solver_class
+
+    caps = getattr(get_solver_class(solver), "capabilities", None)
+    return caps.ignored_fields() if caps is not None else set()
+
+
+def _collapse(sets: list[dict[str, Any]], names: tuple[str, ...],
+              defaults: dict[str, Any]) -> list[dict[str, Any]]:
+    """``sets`` with ``names`` at their defaults, each distinct set once (first-seen order)."""
+    out: dict[tuple[tuple[str, str], ...], dict[str, Any]] = {}
+    for params in sets:
+        p = {**params, **{k: defaults[k] for k in names if k in params}}
+        out.setdefault(tuple(sorted((k, repr(v)) for k, v in p.items())), p)
+    return list(out.values())
 
 
 ProgressFn = Callable[[int, int, dict[str, Any], bool], None]
@@ -49,7 +76,7 @@ def print_progress(stream: Any = None) -> ProgressFn:
         elapsed = time.perf_counter() - t0
         print(f"[{done}/{total} {elapsed:6.0f}s] {state:<9} {record['run_id']}{took}",
               file=stream, flush=True)
-        if record.get("status") in ("failed", "diverged") and not skipped:
+        if record.get("status") not in ("completed", None) and not skipped:
             print(f"    reason: {record.get('reason', '')}", file=stream, flush=True)
 
     return report

@@ -37,11 +37,23 @@ from mpsbench.registry import Registry
 
 
 class Status(StrEnum):
+    """The state of a solver, and how a run ended (docs/solver-contract.md section 12).
+
+    ``diverged``: the simulation broke down (non-finite values, runaway speed, particles leaving
+    the domain); ``failed``: an exception (a solver or case bug); ``unsupported``: the solver's
+    capabilities exclude the run (shown with the reason, never a failure of the case);
+    ``timed-out``: a step or wall-clock limit stopped the run (the time reached is recorded);
+    ``crashed``: the process running it died (a signal such as SIGSEGV in native code).
+    """
+
     READY = "ready"
     RUNNING = "running"
     COMPLETED = "completed"
     DIVERGED = "diverged"
     FAILED = "failed"
+    UNSUPPORTED = "unsupported"
+    TIMED_OUT = "timed-out"
+    CRASHED = "crashed"
 
 
 class UnsupportedProblem(ValueError):
@@ -125,9 +137,31 @@ _SINGULAR = {
 }
 
 
+IGNORABLE = ("laplacians", "weights", "gradients", "radii", "time-stepping")
+"""Problem settings a backend may declare it does not use (``Capabilities.ignores``): an
+outside code with its own kernels has no MPS Laplacian, weighting function, pressure gradient
+or effective radius to choose, and its own stable time step rule.  Each name stands for the
+:class:`~mpsbench.physics.config.Models` / :class:`~mpsbench.physics.config.TimeStepping`
+fields in :data:`IGNORED_FIELDS`; a case parameter that sets only such fields does not apply
+to that backend (its runs are not repeated per value, and reports say so)."""
+
+IGNORED_FIELDS: dict[str, tuple[str, ...]] = {
+    "laplacians": ("models.laplacian", "models.gradient_correction"),
+    "weights": ("models.weight",),
+    "gradients": ("models.gradient",),
+    "radii": ("models.re_ratio", "models.re_ratio_laplacian", "models.n0_from"),
+    "time-stepping": ("time_stepping.cfl", "time_stepping.c_nu"),
+}
+
+
 @dataclass(frozen=True)
 class Capabilities:
-    """What a backend supports.  ``None`` for a model category means "any registered model"."""
+    """What a backend supports.  ``None`` for a model category means "any registered model".
+
+    ``ignores``: settings of :data:`IGNORABLE` the backend does not use at all (not "any": a
+    problem asking for any Laplacian runs, with none of them); ``Problem.requirements`` of those
+    categories are then never gaps.
+    """
 
     physics: frozenset[str] = frozenset({"diffusion", "flow"})
     boundaries: frozenset[str] = frozenset(
@@ -139,13 +173,24 @@ class Capabilities:
     laplacians: frozenset[str] | None = None
     weights: frozenset[str] | None = None
     gradients: frozenset[str] | None = None
+    ignores: frozenset[str] = frozenset()
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.ignores) - set(IGNORABLE))
+        if unknown:
+            raise ValueError(f"Capabilities.ignores = {unknown} is not allowed: names from "
+                             f"{', '.join(IGNORABLE)}")
+
+    def ignored_fields(self) -> set[str]:
+        """The Problem fields (``models.laplacian``, ...) this backend does not use."""
+        return {f for name in self.ignores for f in IGNORED_FIELDS[name]}
 
     def gaps(self, problem: Problem) -> list[str]:
         """Reasons this backend cannot run ``problem`` (empty when it can)."""
         out = []
         for category, needed in problem.requirements().items():
             have = getattr(self, category)
-            if have is None:
+            if have is None or category in self.ignores:
                 continue
             for item in sorted(needed - set(have)):
                 out.append(f"{_SINGULAR.get(category, category)} {item!r} not supported")
@@ -240,6 +285,10 @@ class SolverBase:
     version: str = "0"
     capabilities: Capabilities = Capabilities()
     options: tuple[Option, ...] = ()
+    # True for a backend whose native code can take the process down (a segfault in a compiled
+    # library, a hang no Python check can interrupt): sweeps then run each of its runs in a
+    # supervised child process even with one job (mpsbench.results.executors).
+    isolate: bool = False
 
     def __init__(self) -> None:
         self.time = 0.0

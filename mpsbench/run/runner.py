@@ -1,18 +1,30 @@
-"""The runner owns the time loop: time step choice, probes, divergence detection, counters.
+"""The runner owns the time loop: time step choice, probes, divergence detection, limits.
 
 ``run(solver, problem, end_time=...)`` never raises for a failing simulation: it returns a
 :class:`RunResult` whose ``status`` is ``completed``, ``diverged`` (NaN, runaway velocity,
-particles leaving the domain, floating-point error) or ``failed`` (any other exception, with the
+particles leaving the domain, floating-point error), ``unsupported`` (the solver's capabilities
+exclude the problem, with the reasons), ``timed-out`` (a :class:`RunLimits` step or wall-clock
+limit stopped it; ``time`` is the time reached) or ``failed`` (any other exception, with the
 reason).  Time steps are shortened to land exactly on probe times.  After each step the runner
 checks the solver's ``health()`` summary; the state itself is read by probes on their own
 schedule and once at the end.
+
+A case calls ``run`` inside its ``execute``; the sweep that executes the case
+(:func:`mpsbench.results.records.execute_task`) opens a :func:`task_context` around it, which
+carries the run limits to every ``run`` of the case, collects their results (so a refusal is
+reported with its reason even when the case's post-processing then trips over empty probes)
+and reports progress (time reached, steps) to a supervising process.  The wall-clock limit
+checked here is a soft one (between steps); a step that never returns is stopped from outside
+by the supervising process (:mod:`mpsbench.results.executors`).
 """
 
 from __future__ import annotations
 
 import math
 import time as _time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -29,6 +41,86 @@ from mpsbench.run.specs import make_solver
 
 class Diverged(Exception):
     """Raised inside the loop when a divergence check trips."""
+
+
+class TimedOut(Exception):
+    """Raised inside the loop when a :class:`RunLimits` limit is reached."""
+
+
+@dataclass(frozen=True)
+class RunLimits:
+    """Limits of one run of a case (a sweep task): ``max_steps`` time steps per solver run and
+    ``max_wall_s`` wall-clock seconds for all its solver runs together, set-up included (None:
+    no limit).  A run that reaches one ends ``timed-out`` with the time it reached."""
+
+    max_steps: int | None = None
+    max_wall_s: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.max_steps is not None and not (
+                isinstance(self.max_steps, int) and self.max_steps >= 1):
+            raise ValueError(f"RunLimits.max_steps = {self.max_steps!r} is not allowed: an "
+                             "integer >= 1 or None")
+        if self.max_wall_s is not None and not (
+                isinstance(self.max_wall_s, (int, float)) and math.isfinite(self.max_wall_s)
+                and self.max_wall_s > 0):
+            raise ValueError(f"RunLimits.max_wall_s = {self.max_wall_s!r} is not allowed: a "
+                             "finite number > 0 (s) or None")
+
+    def describe(self) -> str:
+        bits = [f"{self.max_steps} steps" if self.max_steps else "",
+                f"{self.max_wall_s:g} s" if self.max_wall_s else ""]
+        return " and ".join(b for b in bits if b) or "none"
+
+
+ProgressSink = Callable[[float, int], None]
+
+
+@dataclass
+class TaskContext:
+    """What :func:`task_context` shares with every ``run`` of one case run (see the module
+    docstring): the limits, the start time, the results so far, the progress sink."""
+
+    limits: RunLimits
+    started: float
+    progress: ProgressSink | None = None
+    results: list[RunResult] = field(default_factory=list)
+    every_s: float = 0.25  # progress reports at most this often
+    _last: float = -math.inf
+
+    @property
+    def deadline(self) -> float:
+        """perf_counter() value at which the wall-clock limit is reached (inf: none)."""
+        w = self.limits.max_wall_s
+        return self.started + w if w else math.inf
+
+    def tick(self, t: float, steps: int, force: bool = False) -> None:
+        if self.progress is None:
+            return
+        now = _time.perf_counter()
+        if force or now - self._last >= self.every_s:
+            self._last = now
+            self.progress(t, steps)
+
+
+_CONTEXT: ContextVar[TaskContext | None] = ContextVar("mpsbench_task_context", default=None)
+
+
+@contextmanager
+def task_context(limits: RunLimits | None = None,
+                 progress: ProgressSink | None = None) -> Iterator[TaskContext]:
+    """Open the context of one case run: every :func:`run` inside obeys ``limits``, appends
+    its result to ``ctx.results`` and reports (time, steps) to ``progress``."""
+    ctx = TaskContext(limits or RunLimits(), _time.perf_counter(), progress)
+    token = _CONTEXT.set(ctx)
+    try:
+        yield ctx
+    finally:
+        _CONTEXT.reset(token)
+
+
+def current_context() -> TaskContext | None:
+    return _CONTEXT.get()
 
 
 @dataclass
@@ -83,14 +175,46 @@ def run(
     dt: float | None = None,
     progress: Callable[[float, int], None] | None = None,
     keep_final: bool = True,
+    run_limits: RunLimits | None = None,
 ) -> RunResult:
-    """Run ``problem`` on ``solver`` until ``end_time`` [s] or ``max_steps`` steps."""
+    """Run ``problem`` on ``solver`` until ``end_time`` [s] or ``max_steps`` steps.
+
+    ``max_steps`` is what the caller asks for (reaching it completes the run); ``run_limits``
+    (default: those of the enclosing :func:`task_context`) stop a run that goes on too long
+    (``timed-out``).
+    """
+    ctx = _CONTEXT.get()
+    result = _run(solver, problem, end_time, max_steps, probes, limits, dt, progress, keep_final,
+                  run_limits or (ctx.limits if ctx is not None else RunLimits()),
+                  ctx.deadline if ctx is not None and run_limits is None else None, ctx)
+    if ctx is not None:
+        ctx.results.append(result)
+        ctx.tick(result.time, result.n_steps, force=True)
+    return result
+
+
+def _run(
+    solver: str | type | Solver,
+    problem: Problem,
+    end_time: float | None,
+    max_steps: int | None,
+    probes: Sequence[Probe],
+    limits: DivergenceLimits | None,
+    dt: float | None,
+    progress: Callable[[float, int], None] | None,
+    keep_final: bool,
+    run_limits: RunLimits,
+    deadline: float | None,
+    ctx: TaskContext | None,
+) -> RunResult:
     if end_time is None and max_steps is None:
         raise ValueError("run: give end_time or max_steps (or both)")
     if end_time is not None and not (math.isfinite(end_time) and end_time > 0):
         raise ValueError(f"run: end_time = {end_time!r} is not allowed: a finite number > 0 (s)")
     limits = limits or DivergenceLimits()
     t_start = _time.perf_counter()
+    if deadline is None:  # limits of this run alone: the wall clock starts now
+        deadline = t_start + run_limits.max_wall_s if run_limits.max_wall_s else math.inf
     try:
         s = make_solver(solver)
     except Exception as exc:  # noqa: BLE001 - reported in the result
@@ -98,9 +222,10 @@ def run(
     try:
         s.setup(problem)
     except UnsupportedProblem as exc:
-        return _early(Status.FAILED, str(exc), problem, s)
+        return _early(Status.UNSUPPORTED, str(exc), problem, s)
     except Exception as exc:  # noqa: BLE001
-        return _early(Status.FAILED, f"setup failed: {type(exc).__name__}: {exc}", problem, s)
+        return _early(Status.FAILED, f"setup failed: {type(exc).__name__}: {exc}{where(exc)}",
+                      problem, s)
     setup_time = _time.perf_counter() - t_start
     horizon = end_time if end_time is not None else math.inf
     for probe in probes:
@@ -124,6 +249,10 @@ def run(
                 break
             if end_time is not None and s.time >= end_time * (1 - 1e-12):
                 break
+            if run_limits.max_steps is not None and s.n_steps >= run_limits.max_steps:
+                raise TimedOut(f"step limit of {run_limits.max_steps} steps reached")
+            if _time.perf_counter() >= deadline:
+                raise TimedOut(f"wall-clock limit of {run_limits.max_wall_s:g} s reached")
             h = dt if dt is not None else s.stable_dt()
             if not (math.isfinite(h) and h > 0):
                 raise Diverged(f"time step {h!r} is not a positive finite number")
@@ -142,6 +271,10 @@ def run(
                 frames.maybe_record(s)
             if progress is not None:
                 progress(s.time, s.n_steps)
+            if ctx is not None:
+                ctx.tick(s.time, s.n_steps)
+    except TimedOut as exc:
+        status, reason = Status.TIMED_OUT, str(exc)
     except (Diverged, FloatingPointError) as exc:
         status, reason = Status.DIVERGED, f"{type(exc).__name__}: {exc}" if isinstance(
             exc, FloatingPointError) else str(exc)

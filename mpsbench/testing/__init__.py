@@ -31,11 +31,11 @@ from typing import Any, Literal
 
 from mpsbench.errors import where
 
+from .catalogue import all_checks
 from .checks import (
     Check,
     SkipCheck,
     SolverSpec,
-    all_checks,
     capabilities_of,
     expected_failures,
     fresh_solver,

@@ -80,7 +80,11 @@ def declared(caps: Capabilities, category: str) -> list[str]:
 
 
 def _supports(caps: Capabilities, category: str, item: str) -> bool:
-    have = getattr(caps, category)
+    """Whether a problem asking for ``item`` of ``category`` runs on the solver (a category
+    it ``ignores`` runs with any item: it is not used)."""
+    if category in caps.ignores:
+        return True
+    have = getattr(caps, category, None)
     return have is None or item in have
 
 
@@ -94,8 +98,15 @@ _SINGULAR = {
 
 
 def _missing(caps: Capabilities, needs: Needs) -> list[str]:
+    """What a check needs that the solver lacks; a category it ``ignores`` is lacking (a check
+    of MPS Laplacians tests nothing on a code that has none)."""
     out = []
     for category, items in needs.items():
+        if category in caps.ignores:
+            out.append(f"{category} (it uses none of them: Capabilities.ignores)")
+            continue
+        if not hasattr(caps, category):  # an ignorable setting: only ``ignores`` gates it
+            continue
         for item in sorted(items):
             if not _supports(caps, category, item):
                 out.append(f"{_SINGULAR.get(category, category)} {item!r}")
@@ -142,6 +153,7 @@ class Check:
     def skip_reason(self, caps: Capabilities) -> str | None:
         missing = _missing(caps, self.needs)
         return "solver does not declare " + ", ".join(missing) if missing else None
+
 
     def __call__(self, solver: SolverSpec) -> None:
         """Run the check on ``solver`` (name, class or instance); raises on failure."""
@@ -559,8 +571,10 @@ def check_divergence_reported(make: Factory, caps: Capabilities, factor: float =
 # --------------------------------------------------------------------------- the catalogue
 
 
-def all_checks() -> list[Check]:
-    """Every check, in the order they run (model-specific checks once per registered model)."""
+def api_checks() -> list[Check]:
+    """The protocol and invariant checks, in the order they run (model-specific checks once per
+    registered model); the physics checks are :mod:`.physics_checks`, every check
+    :func:`mpsbench.testing.catalogue.all_checks`."""
     flow_periodic = {"physics": frozenset({"flow"}), "boundaries": frozenset({"periodic"})}
     diffusion = {"physics": frozenset({"diffusion"}), "boundaries": frozenset({"periodic"})}
     checks = [

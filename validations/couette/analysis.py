@@ -144,25 +144,29 @@ def _with_n(df: pd.DataFrame) -> pd.DataFrame:
     """Add ``n`` = L / l0 (an integer, for grouping without float trouble)."""
     if df.empty:
         return df
-    return df.assign(n=(L / df["l0"]).round().astype(int))
+    # records written before the drift parameter have no drift column: no drift
+    drift = df["drift"].fillna(0.0) if "drift" in df else 0.0
+    return df.assign(n=(L / df["l0"]).round().astype(int), drift=drift)
 
 
 def _default_walls(df: pd.DataFrame) -> pd.DataFrame:
     if df.empty:
         return df
     return df[(df["wall_velocity"] == "prescribed") & (df["wall_row"] == "on-plate")
-              & (df["jitter"] == 0)]
+              & (df["jitter"] == 0) & (df["drift"] == 0)]
 
 
 def _treatment_groups(df: pd.DataFrame) -> list[tuple[str, pd.DataFrame]]:
     """Groups of one resolution and wall treatment, named like ``L-40_prescribed``."""
     out = []
-    for (n, wv, wr, jit), g in df.groupby(["n", "wall_velocity", "wall_row", "jitter"]):
+    for (n, wv, wr, jit, dr), g in df.groupby(["n", "wall_velocity", "wall_row", "jitter",
+                                               "drift"]):
         key = f"L-{n}_{wv}" + ("" if wr == "on-plate" else f"_{wr}") + (
-            "" if jit == 0 else f"_jitter-{jit:g}")
+            "" if jit == 0 else f"_jitter-{jit:g}") + ("" if dr == 0 else f"_drift-{dr:g}")
         out.append((key, g))
     order = {"prescribed": 0, "mirror": 1}
     return sorted(out, key=lambda kv: (-kv[1]["n"].iloc[0], kv[1]["jitter"].iloc[0],
+                                       kv[1]["drift"].iloc[0],
                                        kv[1]["wall_row"].iloc[0] != "on-plate",
                                        order.get(kv[1]["wall_velocity"].iloc[0], 2)))
 
@@ -242,7 +246,8 @@ def _location_line(g: pd.DataFrame) -> str:
 
 def _treatment_line(df: pd.DataFrame) -> str:
     """Prescribed against mirror walls on the same cells (finest spacing)."""
-    d = df[(df["n"] == df["n"].max()) & (df["wall_row"] == "on-plate") & (df["jitter"] == 0)]
+    d = df[(df["n"] == df["n"].max()) & (df["wall_row"] == "on-plate") & (df["jitter"] == 0)
+           & (df["drift"] == 0)]
     keys = ["laplacian", "weight", "re_ratio"]
     pre = d[d["wall_velocity"] == "prescribed"].groupby(keys)["l2_error"].first()
     mir = d[d["wall_velocity"] == "mirror"].groupby(keys)["l2_error"].first()

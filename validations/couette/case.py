@@ -20,6 +20,11 @@ simulated gap is L + l0 and the profile is off by about l0/(2L) relative (3 % at
 error of the geometry, not of the Laplacian.  ``mirror`` reflects boundary velocities through
 the plate line and suits both placements.
 
+``drift`` adds a uniform x velocity to the fluid and both plates: by Galilean invariance the
+profile relative to it is the same (the metrics subtract it), while every particle crosses the
+periodic x edges; the smoke tier's drift run holds a backend's periodic wrap (its errors equal
+the run without drift to round-off).
+
 The flow is one-dimensional: every fluid row keeps one velocity, so the periodic strip is only
 as wide as the neighbour search allows (2 (r_e + l0/2) + l0) and u(y) is the mean over each row
 (:class:`mpsbench.run.probes.LayerAverage`).  Gravity is off, c0 = 10 U (docs/method.md: c0 >=
@@ -70,17 +75,18 @@ from ..paper import RE_RATIOS
 from . import analysis, figures
 from .analysis import HEADLINE_N
 from .metrics import (
-    C0,
     END_TIME,
     MOVING_TAG,
     NU,
     RHO,
+    SMOKE_DRIFT,
     STEADY_RUN_TIME,
     TIMES,
     L,
     U,
     profile_metrics,
     series,
+    sound_speed,
     time_key,
 )
 
@@ -128,6 +134,9 @@ class CouetteCase(Case):
         Param("jitter", 0.0, "uniform random displacement of the fluid particles", unit="l0",
               minimum=0.0, maximum=0.3),
         Param("seed", 1, "seed of the jitter", kind=int, minimum=0),
+        Param("drift", 0.0, "uniform x velocity added to the fluid and both plates (Galilean "
+              "invariance: the profile relative to it is unchanged, while particles cross the "
+              "periodic edges); c0 = 10 (U + drift)", unit="m/s", minimum=0.0, maximum=0.1),
     )
     tiers = {
         # seconds: L/20 with both wall treatments, plus the headline cell at L/40
@@ -136,6 +145,9 @@ class CouetteCase(Case):
              "l0": [L / 20], "wall_velocity": ["prescribed", "mirror"], "dt_check": [True]},
             {"laplacian": ["xu-jin"], "weight": ["wf2"], "re_ratio": [3.1], "l0": [L / 40],
              "steady": [False]},
+            # periodic crossing: every particle crosses the x edges once by t = 0.1125 s
+            {"laplacian": ["xu-jin"], "weight": ["wf2"], "re_ratio": [3.1], "l0": [L / 20],
+             "steady": [False], "drift": [SMOKE_DRIFT]},
         ],
         # the full model x WF x radius grid at L/20 and L/40 (steady state at r_e/l0 = 3.1),
         # and the mirror treatment at r_e/l0 = 3.1
@@ -192,6 +204,7 @@ class CouetteCase(Case):
         "n_rows": ("equal", 0.0),
     }
     headline = f"l2_error_with_u_num_L-{HEADLINE_N}_prescribed"
+    accuracy = ("l2_error", "l2_error_steady", "linf_error")
     # u_num of the t = 0.1125 s error (docs/method.md section 9): in l0 (c_nu fixed, so dt
     # shrinks with l0^2; theoretical order 1 with prescribed walls, whose error at the plates is
     # first order, and 2 with mirrored ones) and in c_nu (forward Euler: order 1 in dt)
@@ -235,12 +248,17 @@ class CouetteCase(Case):
             jitter(p, params["jitter"] * l0, int(params["seed"]), where=p.kind == Kind.FLUID)
         margin = (n_dummy + 2) * l0
         box = Box((0.0, -margin), (width, L + margin), (True, False))
-        physics = FlowPhysics(rho0=RHO, nu=NU, gravity=(0.0, 0.0), c0=C0,
+        drift = float(params["drift"])
+        if drift:
+            p.vel[:, 0] += drift  # fluid and both plates
+        physics = FlowPhysics(rho0=RHO, nu=NU, gravity=(0.0, 0.0), c0=sound_speed(params),
                               wall_velocity=params["wall_velocity"])
         models = Models(weight=params["weight"], laplacian=params["laplacian"], re_ratio=re,
                         n0_from="lattice" if params["jitter"] > 0 else "initial")
+        motions = (WallMotion(MOVING_TAG, (U + drift, 0.0)),) + (
+            (WallMotion(0, (drift, 0.0)),) if drift else ())
         problem = Problem(p, box, l0, physics, models, TimeStepping(c_nu=params["c_nu"]),
-                          wall_motions=(WallMotion(MOVING_TAG, (U, 0.0)),), name="couette")
+                          wall_motions=motions, name="couette")
         return problem, rows
 
     def estimate(self, params: dict[str, Any]) -> RunEstimate:
@@ -253,7 +271,8 @@ class CouetteCase(Case):
         rho = lattice_laplacian_bound(params["weight"], params["laplacian"], re) / l0**2
 
         def steps(c_nu: float, duration: float) -> int:
-            return steps_for(duration, flow_dt(l0, C0, U, 0.2, NU, c_nu, rho))
+            return steps_for(duration, flow_dt(l0, sound_speed(params), U + params["drift"],
+                                               0.2, NU, c_nu, rho))
 
         total, runs = steps(params["c_nu"], END_TIME), 1
         if params["dt_check"]:
@@ -304,7 +323,7 @@ class CouetteCase(Case):
         result = run(solver, problem, end_time=END_TIME, probes=[probe])
         if not result.ok or len(probe.values) != len(TIMES):
             return result, rows, None
-        return result, rows, np.asarray(probe.values, float)
+        return result, rows, np.asarray(probe.values, float) - params["drift"]
 
     def _steady(self, params: dict[str, Any], solver: str,
                 rows: np.ndarray) -> tuple[RunResult, np.ndarray | None]:
@@ -313,14 +332,15 @@ class CouetteCase(Case):
         problem, _ = self.build({**params, "c_nu": max(params["c_nu"], 0.5)})
         p = problem.particles
         fluid = p.kind == Kind.FLUID
-        p.vel[fluid, 0] = U * p.pos[fluid, 1] / L  # start from the exact steady profile
+        # start from the exact steady profile
+        p.vel[fluid, 0] = U * p.pos[fluid, 1] / L + params["drift"]
         l0 = problem.l0
         edges = np.concatenate([rows - 0.5 * l0, [rows[-1] + 0.5 * l0]])
         probe = LayerAverage("u", 1, list(edges), "u", at=[STEADY_RUN_TIME])
         result = run(solver, problem, end_time=STEADY_RUN_TIME, probes=[probe])
         if not result.ok or not probe.values:
             return result, None
-        return result, np.asarray(probe.values[-1], float)
+        return result, np.asarray(probe.values[-1], float) - params["drift"]
 
     # ------------------------------------------------------------------ report
     # The model grid's tables and comparisons use ``model_records`` (the refinement runs feed

@@ -8,6 +8,7 @@ Exact: u(y, t) = U y/L + sum_n (2U/(n pi)) (-1)^n sin(n pi y/L) exp(-n^2 pi^2 nu
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -15,11 +16,17 @@ L = 1.0e-3  # m, gap between the plates
 NU = 1.0e-6  # m^2/s
 RHO = 1000.0  # kg/m^3
 U = 1.25e-5  # m/s, speed of the upper plate
-C0 = 10.0 * U  # m/s
+C0 = 10.0 * U  # m/s (without drift)
+SMOKE_DRIFT = 4.0e-3  # m/s: 4.5e-4 m (the L/20 strip width, 9 l0) in 0.1125 s
 TIMES = (0.0225, 0.045, 0.1125)  # s, Morris et al.'s profile times
 END_TIME = TIMES[-1]
 STEADY_RUN_TIME = 0.3  # s
 MOVING_TAG = 1
+
+
+def sound_speed(params: dict[str, Any]) -> float:
+    """c0 = 10 x the largest speed, U + drift (docs/method.md: c0 >= 10 U_max)."""
+    return 10.0 * (U + float(params.get("drift", 0.0)))
 
 
 def time_key(t: float) -> str:
