@@ -21,7 +21,7 @@ C2 = Claim("C2", "LM3 is more accurate than LM1 and LM2 in Couette flow, across 
 C3 = Claim("C3", "The weighting function plays an insignificant role in LM3's accuracy "
            "(Couette flow).", SOURCE)
 C4 = Claim("C4", "The stabilization greatly reduces pressure noise and unphysical pressure "
-           "fluctuations (water jet).", SOURCE)
+           "fluctuations (the water jet; the hydrostatic column tests it too).", SOURCE)
 C5 = Claim("C5", "The stabilization keeps the number density near n0 and minimises particle "
            "penetration (water jet).", SOURCE)
 C6 = Claim("C6", "IWC-MPS attains good agreement with the dam-break experiments.", SOURCE)
