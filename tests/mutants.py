@@ -139,10 +139,10 @@ class GravityTwice(ReferenceSolver):
 
     name = "mutant-gravity-twice"
 
-    def _predict(self, dt: float, ph: FlowPhysics) -> None:
+    def _predict(self, dt: float, ph: FlowPhysics) -> float | None:
         fluid = self.p.kind == Kind.FLUID
         self.p.vel[fluid] += dt * np.asarray(ph.gravity)
-        super()._predict(dt, ph)
+        return super()._predict(dt, ph)
 
 
 class StabilizedSurface(ReferenceSolver):
@@ -150,11 +150,11 @@ class StabilizedSurface(ReferenceSolver):
 
     name = "mutant-stabilized-surface"
 
-    def _stabilize(self, factor: float, with_walls: bool) -> None:
+    def _stabilization(self, factor: float, with_walls: bool) -> FloatArray:
         saved = self.free_surface
         self.free_surface = np.zeros_like(saved)
         try:
-            super()._stabilize(factor, with_walls)
+            return super()._stabilization(factor, with_walls)
         finally:
             self.free_surface = saved
 

@@ -137,6 +137,9 @@ _SINGULAR = {
 }
 
 
+SCHEMES = ("explicit", "semi-implicit")
+"""The time-integration families of :attr:`Capabilities.scheme`."""
+
 IGNORABLE = ("laplacians", "weights", "gradients", "radii", "time-stepping")
 """Problem settings a backend may declare it does not use (``Capabilities.ignores``): an
 outside code with its own kernels has no MPS Laplacian, weighting function, pressure gradient
@@ -174,12 +177,20 @@ class Capabilities:
     weights: frozenset[str] | None = None
     gradients: frozenset[str] | None = None
     ignores: frozenset[str] = frozenset()
+    # "explicit": the WC-MPS step of docs/solver-contract.md (forward-Euler diffusion, pressure
+    # from the equation of state, the explicit dt rule); "semi-implicit": a pressure Poisson
+    # equation and backward-Euler diffusion (docs/method.md section 10).  The kit's oracles of
+    # the explicit one-step update apply to the first only.
+    scheme: str = "explicit"
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.ignores) - set(IGNORABLE))
         if unknown:
             raise ValueError(f"Capabilities.ignores = {unknown} is not allowed: names from "
                              f"{', '.join(IGNORABLE)}")
+        if self.scheme not in SCHEMES:
+            raise ValueError(f"Capabilities.scheme = {self.scheme!r} is not allowed: one of "
+                             f"{', '.join(SCHEMES)}")
 
     def ignored_fields(self) -> set[str]:
         """The Problem fields (``models.laplacian``, ...) this backend does not use."""
@@ -198,7 +209,7 @@ class Capabilities:
 
     def as_dict(self) -> dict[str, Any]:
         return {
-            k: (sorted(v) if v is not None else "any")
+            k: (v if isinstance(v, str) else sorted(v) if v is not None else "any")
             for k, v in self.__dict__.items()
         }
 

@@ -25,7 +25,14 @@ from mpsbench.physics.gradients import GRADIENTS
 from mpsbench.physics.laplacians import LAPLACIANS
 from mpsbench.physics.particles import Box, Kind, Particles
 from mpsbench.physics.weights import WEIGHTS
-from mpsbench.run.protocol import Capabilities, Problem, Solver, Status, UnsupportedProblem
+from mpsbench.run.protocol import (
+    SCHEMES,
+    Capabilities,
+    Problem,
+    Solver,
+    Status,
+    UnsupportedProblem,
+)
 from mpsbench.run.specs import get_solver_class, make_solver
 
 from . import problems
@@ -247,6 +254,9 @@ def check_api_shape(make: Factory, caps: Capabilities) -> None:
     )
     for f in dataclasses.fields(Capabilities):
         value = getattr(s.capabilities, f.name)
+        if f.name == "scheme":
+            assert value in SCHEMES, f"capabilities.scheme must be one of {', '.join(SCHEMES)}"
+            continue
         optional = f.name in ("laplacians", "weights", "gradients")
         ok = (value is None and optional) or (
             isinstance(value, frozenset) and all(isinstance(v, str) for v in value)

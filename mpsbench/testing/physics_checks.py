@@ -52,6 +52,14 @@ def _one_step(make: Factory, problem: Problem, dt: float) -> Any:
     return s
 
 
+def _explicit_only(caps: Capabilities, what: str) -> None:
+    """Skip a check that holds the explicit WC-MPS one-step update for another scheme."""
+    scheme = getattr(caps, "scheme", "explicit")
+    if scheme != "explicit":
+        raise SkipCheck(f"{what} holds the explicit WC-MPS scheme; this backend's scheme is "
+                        f"{scheme} (docs/method.md section 10)")
+
+
 def _diag(s: Any, key: str) -> Any:
     value = s.diagnostics().get(key)
     if value is None:
@@ -71,6 +79,7 @@ def check_laplacian_oracle(make: Factory, caps: Capabilities, laplacian: str) ->
     sheared lattice is below round-off): u1 - u0 = dt nu lap(u0).  Round-off tolerance (1e-9
     of the change): the kit and the backend evaluate the same formula.
     """
+    _explicit_only(caps, "the one-step Laplacian oracle")
     ran = 0
     weight = _pick(caps, "weights", "wf2")
     wf = get_weight(weight)
@@ -131,6 +140,7 @@ def check_gradient_oracle(make: Factory, caps: Capabilities, gradient: str) -> N
     u = -(dt / rho0) grad(p) with p the equation of state of n at these positions.  The kit
     evaluates n, p and the registered gradient model itself; round-off tolerance (1e-9).
     """
+    _explicit_only(caps, "the one-step pressure-gradient oracle")
     models = _models(caps, gradient=gradient, n0_from="lattice")
     problem = problems.periodic_flow_problem(
         amplitude=0.0, models=models, nu=0.0, surface_beta=0.5, clip_negative_pressure=False)
@@ -168,6 +178,7 @@ def check_stable_dt_rule(make: Factory, caps: Capabilities) -> None:
     positions; diffusion: c_nu 2 / (kappa rho), rho the largest absolute row sum of the
     assembled Laplacian.  The kit computes both from the model definitions; tolerance 1e-9.
     """
+    _explicit_only(caps, "the sound-speed time-step rule")
     ran = 0
     weight = _pick(caps, "weights", "wf2")
     wf = get_weight(weight)

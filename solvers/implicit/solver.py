@@ -39,7 +39,7 @@ class ImplicitSolver(SemiImplicitScheme, ReferenceSolver):
 
     name = "implicit"
     version = "1.0"
-    capabilities = Capabilities()
+    capabilities = Capabilities(scheme="semi-implicit")
     bench_default = False  # `mpsbench bench` times it only when asked (--solver implicit)
     options = (
         Option("source", "density", "PPE source: density (n* - n0), divergence (div u*), "
