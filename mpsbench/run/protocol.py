@@ -192,6 +192,14 @@ class Capabilities:
             raise ValueError(f"Capabilities.scheme = {self.scheme!r} is not allowed: one of "
                              f"{', '.join(SCHEMES)}")
 
+    @classmethod
+    def own_kernels(cls, physics: frozenset[str], boundaries: frozenset[str]) -> Capabilities:
+        """An outside code with its own kernels and time step (PySPH, an external program): no
+        MPS model or feature to choose, every :data:`IGNORABLE` setting ignored."""
+        return cls(physics=physics, boundaries=boundaries, features=frozenset(),
+                   laplacians=frozenset(), weights=frozenset(), gradients=frozenset(),
+                   ignores=frozenset(IGNORABLE))
+
     def ignored_fields(self) -> set[str]:
         """The Problem fields (``models.laplacian``, ...) this backend does not use."""
         return {f for name in self.ignores for f in IGNORED_FIELDS[name]}

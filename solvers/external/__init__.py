@@ -106,14 +106,9 @@ def read_snapshot(path: Path, n: int) -> np.ndarray:
     return out
 
 
-CAPABILITIES = Capabilities(
+CAPABILITIES = Capabilities.own_kernels(
     physics=frozenset({"flow"}),
     boundaries=frozenset({"periodic", "periodic-x", "periodic-y", "walls", "moving-walls"}),
-    features=frozenset(),
-    laplacians=frozenset(),
-    weights=frozenset(),
-    gradients=frozenset(),
-    ignores=frozenset({"laplacians", "weights", "gradients", "radii", "time-stepping"}),
 )
 
 

@@ -44,14 +44,9 @@ def _pysph_version() -> str:
         return "?"
 
 
-CAPABILITIES = Capabilities(
+CAPABILITIES = Capabilities.own_kernels(
     physics=frozenset({"flow"}),
     boundaries=frozenset({"periodic", "periodic-x", "periodic-y", "walls", "moving-walls"}),
-    features=frozenset(),
-    laplacians=frozenset(),
-    weights=frozenset(),
-    gradients=frozenset(),
-    ignores=frozenset({"laplacians", "weights", "gradients", "radii", "time-stepping"}),
 )
 
 
