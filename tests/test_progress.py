@@ -4,14 +4,18 @@ a terminal, a bar on one, --quiet."""
 from __future__ import annotations
 
 import io
+import math
 from collections.abc import Iterator
 from typing import Any
 
 import pytest
 
 from mpsbench import cli
-from mpsbench.results.progress import Progress, short_label, task_costs
+from mpsbench.results.executors import LocalExecutor
+from mpsbench.results.live import LiveRun
+from mpsbench.results.progress import Progress, short_label, task_costs, values_label
 from mpsbench.results.records import Task
+from mpsbench.results.sweep import plan, run_tasks
 from mpsbench.run.estimate import RunEstimate
 from tests.fake_cases import ToyCounter, ToyDiffusion, only_cases
 
@@ -114,3 +118,70 @@ def test_validate_quiet_and_verbose(toys: object, tmp_path: Any,
     with pytest.raises(SystemExit) as exc:
         cli.main([*args, "--quiet", "--verbose"])
     assert exc.value.code == 2
+
+
+# ---- one bar per run in progress (issue 18, item 3): what the executors report, how it is drawn
+
+def test_a_bar_per_run_in_progress_on_a_terminal_only(toys: object) -> None:
+    a, b = _tasks(2)
+    live = [LiveRun(a, 0.1, 10, 0.4, 2.0), LiveRun(b, None, 0, math.nan, 65.0)]
+    tty = Tty()
+    p = Progress([a, b], stream=tty)
+    p.running(live)
+    text = tty.getvalue()
+    assert "t 0.1/0.4 s, step 10, 0:02" in text and "setting up, 1:05" in text
+    assert len(p.run_bars) == 2 and p.run_bars[0].n == 250 and p.run_bars[1].n == 0
+    p._drawn = -1.0
+    p.running(live[:1])  # the second run ended: its bar says idle until another starts
+    assert "idle" in tty.getvalue()
+    p.close()
+    assert p.run_bars == []
+    for mode, stream in (("auto", io.StringIO()), ("quiet", Tty()), ("verbose", Tty())):
+        q = Progress([a], mode, stream=stream)
+        q.running(live)
+        q.close()
+        assert stream.getvalue() == ""  # plain lines, quiet and verbose draw no run bars
+
+
+def test_run_labels_name_the_values_that_tell_runs_apart() -> None:
+    t = Task("dam-break", "numba", "quick", {"geometry": "lobovsky", "t_end": 0.3,
+                                             "stabilization": False, "l0": 0.0125},
+             "dam-break_numba_geometry=lobovsky_l0=0.0125_stabilization=False_t_end=0.3_ab12",
+             run_hash="h")
+    assert values_label(t, 60) == "dam-break lobovsky 0.0125 no stabilization 0.3"
+    assert values_label(t, 20) == "dam-break lobovsk..."
+    plain = Task("toy", "reference", "smoke", {"n": 3}, "toy_reference_ab12cd34", run_hash="h")
+    assert values_label(plain) == "toy (defaults)"
+    assert LiveRun(t, 0.15, 3, 0.3, 1.0).fraction == pytest.approx(0.5)
+    assert LiveRun(t, 0.15, 3, math.nan, 1.0).fraction is None  # a run to a step count
+
+
+class Watcher:
+    """A progress callback with ``running``: what a sweep reports while its runs go on."""
+
+    def __init__(self) -> None:
+        self.live: list[LiveRun] = []
+        self.done: list[str] = []
+
+    def __call__(self, done: int, total: int, record: dict[str, Any], skipped: bool) -> None:
+        self.done.append(str(record["run_id"]))
+
+    def running(self, live: Any) -> None:
+        self.live.extend(live)
+
+
+@pytest.mark.parametrize("jobs", [1, 2])
+def test_executors_report_the_runs_in_progress(toys: tuple[ToyDiffusion, ToyCounter],
+                                               tmp_path: Any, jobs: int) -> None:
+    diffusion, _ = toys
+    tasks = plan(diffusion, ["reference"], "smoke")
+    w = Watcher()
+    recs = run_tasks(tasks, tmp_path, executor=LocalExecutor(jobs), progress=w)
+    assert all(r["status"] == "completed" for r in recs) and sorted(w.done) == sorted(
+        t.run_id for t in tasks)
+    ids = {t.run_id for t in tasks}
+    assert w.live and {lr.task.run_id for lr in w.live} <= ids
+    if jobs == 1:  # in this process every solver run reports its end (a step count: no t_end)
+        ends = [lr for lr in w.live if lr.steps == diffusion.defaults()["steps"]]
+        assert {lr.task.run_id for lr in ends} == ids
+        assert all(lr.t is not None and lr.t > 0 and lr.fraction is None for lr in ends)

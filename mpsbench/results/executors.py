@@ -26,11 +26,13 @@ import os
 import shutil
 import sys
 import tempfile
+import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 from mpsbench.errors import MpsbenchError
+from mpsbench.results.live import LiveRun, WatchFn
 from mpsbench.results.records import (
     Task,
     _crashed,
@@ -57,8 +59,11 @@ class Executor:
     name = "base"
 
     def run(
-        self, tasks: Sequence[Task], folder: FolderFn, env: dict[str, Any]
+        self, tasks: Sequence[Task], folder: FolderFn, env: dict[str, Any],
+        watch: WatchFn | None = None,
     ) -> Iterator[tuple[Task, dict[str, Any]]]:
+        """``watch``, where the executor can see its runs' state, hears the runs in progress
+        every fraction of a second (:mod:`.live`); an executor that cannot ignores it."""
         raise NotImplementedError
 
     def describe(self) -> str:
@@ -106,7 +111,8 @@ class LocalExecutor(Executor):
         return f"local ({self.jobs} process{'es' if self.jobs > 1 else ''})"
 
     def run(
-        self, tasks: Sequence[Task], folder: FolderFn, env: dict[str, Any]
+        self, tasks: Sequence[Task], folder: FolderFn, env: dict[str, Any],
+        watch: WatchFn | None = None,
     ) -> Iterator[tuple[Task, dict[str, Any]]]:
         if not tasks:
             return
@@ -114,10 +120,24 @@ class LocalExecutor(Executor):
             needs_isolation(t) for t in tasks)
         if inline:
             for task in tasks:
-                yield task, execute_task(task, str(folder(task)), env)
+                yield task, execute_task(task, str(folder(task)), env,
+                                         progress=_inline_watch(task, watch),
+                                         progress_every=0.5)
             return
         # Each worker runs single-threaded numerics; the workers give the parallelism.
-        yield from run_supervised(tasks, folder, env, self.jobs)
+        yield from run_supervised(tasks, folder, env, self.jobs, watch)
+
+
+def _inline_watch(task: Task, watch: WatchFn | None) -> Callable[[float, int, float], None] | None:
+    """The runner's progress sink of a run in this process, passed on to ``watch``."""
+    if watch is None:
+        return None
+    started = time.monotonic()
+
+    def sink(t: float, steps: int, t_end: float) -> None:
+        watch([LiveRun(task, t, steps, t_end, time.monotonic() - started)])
+
+    return sink
 
 
 # --------------------------------------------------------------------------- dask
@@ -224,8 +244,10 @@ class DaskExecutor(Executor):
         return self._client
 
     def run(
-        self, tasks: Sequence[Task], folder: FolderFn, env: dict[str, Any]
+        self, tasks: Sequence[Task], folder: FolderFn, env: dict[str, Any],
+        watch: WatchFn | None = None,
     ) -> Iterator[tuple[Task, dict[str, Any]]]:
+        # ``watch`` is not called: dask workers do not report a run before it finishes
         if not tasks:
             return
         distributed = _import_distributed()
@@ -237,9 +259,9 @@ class DaskExecutor(Executor):
             ): task
             for task in tasks
         }
-        watch = _WorkerWatch(client, self.worker_wait, self.report, self.describe())
+        workers = _WorkerWatch(client, self.worker_wait, self.report, self.describe())
         try:
-            for fut in watch.as_completed(distributed, futures):
+            for fut in workers.as_completed(distributed, futures):
                 task = futures.pop(fut)
                 try:
                     text, npz = fut.result()

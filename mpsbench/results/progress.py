@@ -8,16 +8,18 @@ short runs and few long ones no longer make the count say nothing (issue 18).
 Three modes:
 
 * on a terminal (a TTY), an overall bar drawn with tqdm: runs done / planned, the share of the
-  estimated work done, elapsed time and ETA, the last finished run's short label; a run that
-  did not complete is printed above the bar with its reason;
+  estimated work done, elapsed time and ETA, the last finished run's short label; under it one
+  bar per run in progress (:meth:`Progress.running`): its short label, the simulated time of
+  its current solver run against that run's end time, the step, how long it has been going
+  ("setting up" before its first step: building the problem, compiling kernels); a run that
+  did not complete is printed above the bars with its reason;
 * otherwise (a log, CI) plain lines, one per finished run: ``[done/total elapsed eta] status
   run_id wall`` (and the reason of a run that did not complete);
 * ``quiet``: nothing per run (the verdicts at the end are printed as always); ``verbose``:
   the plain lines even on a terminal.
 
-Not yet: one bar per run in progress (its simulated time against t_end) needs each worker
-process to report (time, steps) to the parent while it runs; the supervised workers of issue
-16 carry such reports, and the bars belong on them.
+The runs in progress come from the executor (:mod:`.live`): local runs report, a dask
+cluster's do not (only the overall bar moves).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from mpsbench.results.live import LiveRun
 from mpsbench.results.records import Task
 
 ProgressFn = Callable[[int, int, dict[str, Any], bool], None]
@@ -85,9 +88,16 @@ class Progress:
 
             from tqdm import tqdm
 
-            cols = shutil.get_terminal_size((100, 24)).columns or 100  # 0 on some ptys
+            # a pty made without a size (script, some CI runners) reports 0 x 0: tqdm then
+            # draws nothing at all, so fall back to 100 x 24
+            size = shutil.get_terminal_size((100, 24))
+            cols = size.columns or 100
+            self.cols, self.rows = cols, size.lines or 24
             self.bar = tqdm(total=len(tasks), file=self.stream, unit="run", ncols=cols,
+                            nrows=self.rows,
                             bar_format="{desc} {bar} {n_fmt}/{total_fmt} runs{postfix}")
+        self.run_bars: list[Any] = []  # one per run in progress, under the overall bar
+        self._drawn = -1.0
 
     def eta(self) -> float | None:
         """Seconds left at the rate of the work done so far (None before any run finished)."""
@@ -127,6 +137,67 @@ class Progress:
         if bad:
             print(f"    reason: {record.get('reason', '')}", file=self.stream, flush=True)
 
+    def running(self, live: Sequence[LiveRun]) -> None:
+        """Draw one bar per run in progress (a terminal only; at most 4 times a second)."""
+        if self.bar is None:
+            return
+        now = time.perf_counter()
+        if now - self._drawn < 0.25:
+            return
+        self._drawn = now
+        from tqdm import tqdm
+
+        while len(self.run_bars) < len(live):
+            self.run_bars.append(tqdm(total=1000, file=self.stream, position=len(self.run_bars) + 1,
+                                      leave=False, ncols=self.cols, nrows=self.rows, unit="",
+                                      bar_format="  {desc} {bar} {unit}"))
+        width = max(20, min(48, self.cols // 2 - 10))
+        for k, bar in enumerate(self.run_bars):
+            if k < len(live):
+                desc, n, post = run_line(live[k], width)
+            else:
+                desc, n, post = "", 0, "idle"
+            bar.n = n
+            bar.set_description_str(desc, False)
+            bar.unit = post  # shown through {unit}: a postfix would get a ", " in front
+            bar.refresh()
+
     def close(self) -> None:
+        for bar in self.run_bars:
+            bar.close()
+        self.run_bars = []
         if self.bar is not None:
             self.bar.close()
+
+
+def values_label(task: Task, width: int = 36) -> str:
+    """A run's case and the values of its id's parameters (``dam-break lobovsky wc-mps
+    0.0125``): the run ids under one case share their names, so the values tell them apart."""
+    head = f"{task.case}_{task.solver}_"
+    rid = task.run_id
+    body = rid[len(head):] if rid.startswith(head) else rid
+    body = body.rsplit("_", 1)[0] if "_" in body else ""
+    # the parameters the id names (those off their defaults), in the id's order; names are
+    # looked up in the task's parameters because a name or a value may itself contain "_"
+    named = sorted((pos, k) for k in task.params
+                   for pos in [("_" + body).find(f"_{k}=")] if pos >= 0)
+    values = [_plain_value(k, task.params[k]) for _, k in named]
+    label = " ".join([task.case, *values]) if values else f"{task.case} (defaults)"
+    return label if len(label) <= width else label[: width - 3] + "..."
+
+
+def _plain_value(name: str, v: Any) -> str:
+    if isinstance(v, bool):  # "True" alone would not say what is on
+        return name if v else f"no {name}"
+    return f"{v:g}" if isinstance(v, float) else str(v)
+
+
+def run_line(run: LiveRun, width: int = 36) -> tuple[str, int, str]:
+    """A run in progress as (label, bar position out of 1000, what it has reached)."""
+    label = values_label(run.task, width).ljust(width)
+    frac = run.fraction
+    if run.t is None:
+        return label, 0, f"setting up, {_clock(run.elapsed_s)}"
+    reached = (f"t {run.t:.3g}/{run.t_end:.3g} s" if frac is not None else f"t {run.t:.3g} s")
+    return (label, int(1000 * frac) if frac is not None else 0,
+            f"{reached}, step {run.steps}, {_clock(run.elapsed_s)}")

@@ -253,7 +253,7 @@ def execute_task(task: Task, outdir: str, env: dict[str, Any],
 
     Never raises for a failing run: the record says ``failed`` (or ``diverged``,
     ``unsupported``, ``timed-out``) with the reason.  The task's run limits
-    (:func:`task_limits`) apply to every solver run of the case; ``progress(t, steps)`` hears
+    (:func:`task_limits`) apply to every solver run of the case; ``progress(t, steps, t_end)`` hears
     how far the current solver run got, at most every ``progress_every`` seconds (a
     supervising process keeps the last report, to say where a run that crashed or never
     returned was stopped).

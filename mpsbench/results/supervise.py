@@ -37,6 +37,7 @@ from multiprocessing.connection import wait as wait_ready
 from pathlib import Path
 from typing import Any
 
+from mpsbench.results.live import LiveRun, WatchFn
 from mpsbench.results.records import (
     Task,
     _solver_commit,
@@ -93,10 +94,11 @@ def _worker_main(conn: Connection, parent: int, reached: Any) -> None:
     _die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops us on Ctrl-C
 
-    def report(t: float, steps: int) -> None:
+    def report(t: float, steps: int, t_end: float) -> None:
         # shared memory, written after every step (a pipe message per step would cost more
-        # than a small step): the parent reads it when the run dies or is killed
-        reached[0], reached[1] = t, steps
+        # than a small step): the parent reads it for the progress bars and when the run dies
+        # or is killed
+        reached[0], reached[1], reached[2] = t, steps, t_end
 
     while True:
         try:
@@ -106,7 +108,7 @@ def _worker_main(conn: Connection, parent: int, reached: Any) -> None:
         if msg is None:
             return
         task, folder, env = msg
-        reached[0], reached[1] = math.nan, 0.0
+        reached[0], reached[1], reached[2] = math.nan, 0.0, math.nan
         rec = execute_task(task, folder, env, progress=report, progress_every=0.0)
         conn.send(("done", rec))
 
@@ -116,8 +118,8 @@ class _Worker:
 
     def __init__(self, ctx: Any) -> None:
         self.conn, child = ctx.Pipe()
-        self.shared = ctx.RawArray("d", 2)  # (t, steps) the current run reached
-        self.shared[0] = math.nan
+        self.shared = ctx.RawArray("d", 3)  # (t, steps, t_end) of the current solver run
+        self.shared[0] = self.shared[2] = math.nan
         self.proc = ctx.Process(target=_worker_main, args=(child, os.getpid(), self.shared),
                                 name="mpsbench-worker")
         self.proc.start()
@@ -132,9 +134,15 @@ class _Worker:
         t, steps = float(self.shared[0]), int(self.shared[1])
         return (None, 0) if math.isnan(t) else (t, steps)
 
+    def live(self) -> LiveRun:
+        assert self.task is not None
+        t, steps = self.reached
+        return LiveRun(self.task, t, steps, float(self.shared[2]),
+                       time.monotonic() - self.started)
+
     def assign(self, task: Task, folder: Path, env: dict[str, Any]) -> None:
         self.task, self.started = task, time.monotonic()
-        self.shared[0], self.shared[1] = math.nan, 0.0
+        self.shared[0], self.shared[1], self.shared[2] = math.nan, 0.0, math.nan
         self.wall = task_limits(task).max_wall_s
         self.kill_at = self.started + kill_after(self.wall)
         self.conn.send((task, str(folder), env))
@@ -211,10 +219,12 @@ def _killed(w: _Worker, folder: FolderFn, env: dict[str, Any]) -> dict[str, Any]
 
 
 def run_supervised(
-    tasks: Sequence[Task], folder: FolderFn, env: dict[str, Any], jobs: int
+    tasks: Sequence[Task], folder: FolderFn, env: dict[str, Any], jobs: int,
+    watch: WatchFn | None = None,
 ) -> Iterator[tuple[Task, dict[str, Any]]]:
     """Run ``tasks`` on ``jobs`` supervised worker processes; yield ``(task, record)`` as each
-    run is recorded (module docstring)."""
+    run is recorded (module docstring).  ``watch`` hears the runs in progress about twice a
+    second (:mod:`.live`)."""
     ctx = mp.get_context()
     queue = deque(tasks)
     workers: list[_Worker] = []
@@ -232,7 +242,9 @@ def run_supervised(
             busy = [w for w in workers if w.task is not None]
             timeout = min(w.kill_at for w in busy) - time.monotonic()
             wait_ready([w.conn for w in busy] + [w.proc.sentinel for w in busy],
-                       timeout=min(max(timeout, 0.0), 5.0))
+                       timeout=min(max(timeout, 0.0), 5.0 if watch is None else 0.5))
+            if watch is not None:
+                watch([w.live() for w in busy])
             for w in busy:
                 current = w.task
                 assert current is not None

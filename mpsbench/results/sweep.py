@@ -130,7 +130,9 @@ def run_tasks(
             superseded[task.run_id] = [path for path, _ in found]
     if executor is None:
         executor = LocalExecutor(max(1, jobs))
-    for task, rec in executor.run(todo, lambda t: folder[t.run_id], env):
+    # a progress display with a ``running`` method gets the runs in progress (:mod:`.live`)
+    watch = getattr(progress, "running", None)
+    for task, rec in executor.run(todo, lambda t: folder[t.run_id], env, watch=watch):
         records[task.run_id] = rec
         _remove_superseded(superseded.get(task.run_id, []), task.run_id)
         done += 1

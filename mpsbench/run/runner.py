@@ -73,7 +73,9 @@ class RunLimits:
         return " and ".join(b for b in bits if b) or "none"
 
 
-ProgressSink = Callable[[float, int], None]
+ProgressSink = Callable[[float, int, float], None]
+"""Hears ``(t, steps, t_end)`` of the solver run in progress (``t_end`` nan: a run to a step
+count); a supervising process draws a bar per run from it and keeps the last report."""
 
 
 @dataclass
@@ -86,6 +88,7 @@ class TaskContext:
     progress: ProgressSink | None = None
     results: list[RunResult] = field(default_factory=list)
     every_s: float = 0.25  # progress reports at most this often
+    end_time: float = math.nan  # of the solver run in progress
     _last: float = -math.inf
 
     @property
@@ -100,7 +103,7 @@ class TaskContext:
         now = _time.perf_counter()
         if force or now - self._last >= self.every_s:
             self._last = now
-            self.progress(t, steps)
+            self.progress(t, steps, self.end_time)
 
 
 _CONTEXT: ContextVar[TaskContext | None] = ContextVar("mpsbench_task_context", default=None)
@@ -237,6 +240,8 @@ def _run(
     field0 = _field_scale(s, problem)
     status, reason = Status.COMPLETED, ""
     t_loop = _time.perf_counter()
+    if ctx is not None:
+        ctx.end_time = end_time if end_time is not None else math.nan
     # Overflow, invalid and divide-by-zero in a step mean the run has broken down.
     old_err = np.seterr(over="raise", invalid="raise", divide="raise", under="ignore")
     frames = recorder(end_time, max_steps)  # never shortens a step: results stay the same
