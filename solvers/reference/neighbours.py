@@ -52,14 +52,21 @@ class SkinnedPairs:
         ki, kj = p.kind[full.i], p.kind[full.j]
         solid_i = (ki != Kind.FLUID) & (ki != Kind.INFLOW)
         boundary = solid_i & (kj != Kind.FLUID) & (kj != Kind.INFLOW)
-        rigid = boundary & np.all(p.vel[full.i] == p.vel[full.j], axis=1)
         # Only pairs with a dummy particle are static: a pair of two wall particles stays in the
         # list, because the pressure gradient needs it (pmin of a wall particle in PGM2 is the
         # minimum over its wall neighbours too).
-        rigid &= (ki == Kind.DUMMY) | (kj == Kind.DUMMY)
-        # Static pairs: their weights never change, so add them to n once per build.
-        self.static_n = full.sum_sym(np.where(rigid, weight.w(full.r, re), 0.0))
-        keep = ~rigid
+        boundary &= (ki == Kind.DUMMY) | (kj == Kind.DUMMY)
+        # of those (a tenth of the list), the pairs that move rigidly together
+        cand = np.flatnonzero(boundary)
+        ci, cj = full.i[cand], full.j[cand]
+        rigid_at = cand[np.all(p.vel[ci] == p.vel[cj], axis=1)]
+        # Static pairs: their weights never change, so add them to n once per build (the same
+        # sums, in the same order, as summing every pair with zero weight off the static ones).
+        ri, rj = full.i[rigid_at], full.j[rigid_at]
+        w = weight.w(full.r[rigid_at], re)
+        self.static_n = np.bincount(ri, w, full.n) + np.bincount(rj, w, full.n)
+        keep = np.ones(len(full), dtype=bool)
+        keep[rigid_at] = False
         self.pairs = PairList(
             full.i[keep], full.j[keep], full.dx[keep], full.r[keep], full.n, full.cutoff
         )
