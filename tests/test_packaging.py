@@ -41,6 +41,12 @@ def packages_on_disk(package_dir: dict[str, str]) -> set[str]:
     return found
 
 
+def _folder(name: str, package_dir: dict[str, str]) -> Path:
+    """Where package ``name`` lives on disk under the package-dir mapping."""
+    root = max((k for k in package_dir if name == k or name.startswith(k + ".")), key=len)
+    return Path(package_dir[root], *name[len(root):].split(".")[1:])
+
+
 def test_package_dir_maps_the_three_roots() -> None:
     package_dir = load_setuptools()["package-dir"]
     assert package_dir == {
@@ -54,6 +60,11 @@ def test_packages_list_matches_folders() -> None:
     cfg = load_setuptools()
     listed = set(cfg["packages"])
     on_disk = packages_on_disk(cfg["package-dir"])
+    # folders of data only are listed too (with their files in package-data): no __init__.py
+    data_only = {name for name in listed if name in load_pyproject()["tool"]["setuptools"][
+        "package-data"] and not (ROOT / _folder(name, cfg["package-dir"]) / "__init__.py").exists()}
+    assert {"mpsbench.validations.data", "mpsbench.validations.baselines.smoke"} <= data_only
+    listed -= data_only
     missing = sorted(on_disk - listed)
     stale = sorted(listed - on_disk)
     assert not missing, f"add to [tool.setuptools] packages in pyproject.toml: {missing}"
@@ -131,7 +142,7 @@ def test_sdist_carries_docs_examples_and_license(dists: tuple[Path, Path]) -> No
         assert path in names, path
     assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
     # build leftovers of the example plugin (pip builds it in its folder) stay out
-    assert not [n for n in names if ".egg-info" in n and not n.startswith("mpsbench.egg-info/")]
+    assert not [n for n in names if ".egg-info" in n and n.split("/")[0] != "mpsbench.egg-info"]
     assert not [n for n in names if n.startswith("reports/")]
     assert "License-Expression: MIT" in pkg_info and "License-File: LICENSE" in pkg_info
     assert "Classifier: Typing :: Typed" in pkg_info
