@@ -106,3 +106,18 @@ def test_an_own_kernel_backend_runs_each_physical_set_once(fakes: None) -> None:
     assert {t.params["re_ratio"] for t in own} == {case.param("re_ratio").default}
     assert set(own[0].not_applicable) == {"laplacian", "weight", "re_ratio", "c_nu"}
     assert not mps[0].not_applicable
+
+
+def test_a_study_file_collapses_an_own_kernel_backend_the_same_way(fakes: None) -> None:
+    from mpsbench.results.study_spec import parse_study
+
+    grid = {"laplacian": ["koshizuka-oka", "xu-jin", "khayyer-gotoh"], "re_ratio": [2.1, 3.1]}
+    table = {"case": "couette", "tier": "smoke", "solvers": ["reference", "fake-own-kernel"],
+             "grid": grid}
+    tasks = parse_study(table, "own").tasks()
+    mps = [t for t in tasks if t.solver == "reference"]
+    own = [t for t in tasks if t.solver == "fake-own-kernel"]
+    assert len(mps) == len(own) * 6 and own  # the six model sets are one physical set
+    assert {t.params["laplacian"] for t in own} == {get_case("couette").param("laplacian").default}
+    assert set(own[0].not_applicable) == {"laplacian", "weight", "re_ratio", "c_nu"}
+    assert not mps[0].not_applicable

@@ -44,7 +44,8 @@ from mpsbench.cases import CASES, TIERS, Case, CaseCheck, Param
 from mpsbench.errors import ConfigError
 from mpsbench.registry import PluginLoadError, UnknownNameError
 from mpsbench.results.executors import EXECUTORS
-from mpsbench.results.records import Task, run_ids
+from mpsbench.results.records import Task
+from mpsbench.results.sweep import solver_tasks
 
 DEFAULT_OUT = Path("reports") / "studies"
 """Studies write to ``reports/studies/<name>`` unless the file or ``--out`` says otherwise."""
@@ -159,9 +160,9 @@ class StudySpec:
         for case in self.case_objects():
             sets = self.param_sets(case)
             for solver in self.solvers:
-                ids = run_ids(case.name, solver, sets, case.defaults())
-                for params, rid in zip(sets, ids, strict=True):
-                    task = Task(case.name, solver, self.tier, params, rid)
+                # an outside code's runs: the MPS settings it ignores at their defaults, one
+                # run per physical set, the records say which settings do not apply
+                for task in solver_tasks(case, solver, self.tier, sets):
                     if task.run_hash not in seen:  # the same run from the grid and [[runs]]
                         seen.add(task.run_hash)
                         out.append(task)

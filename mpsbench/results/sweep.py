@@ -37,12 +37,18 @@ def plan(
     tasks = []
     sets = case.expand(tier, overrides)
     for solver in dict.fromkeys(canonical_solver(s) for s in solvers):
-        na = tuple(case.not_applicable(_ignored_fields(solver)))
-        mine = _collapse(sets, na, case.defaults()) if na else sets
-        ids = run_ids(case.name, solver, mine, case.defaults())
-        tasks += [Task(case.name, solver, tier, p, rid, not_applicable=na)
-                  for p, rid in zip(mine, ids, strict=True)]
+        tasks += solver_tasks(case, solver, tier, sets)
     return tasks
+
+
+def solver_tasks(case: Case, solver: str, tier: str, sets: list[dict[str, Any]]) -> list[Task]:
+    """The tasks of parameter ``sets`` of ``case`` on one solver (``plan``'s rule, also a
+    study file's): settings the backend ignores back at their defaults, each set once."""
+    na = tuple(case.not_applicable(_ignored_fields(solver)))
+    mine = _collapse(sets, na, case.defaults()) if na else sets
+    ids = run_ids(case.name, solver, mine, case.defaults())
+    return [Task(case.name, solver, tier, p, rid, not_applicable=na)
+            for p, rid in zip(mine, ids, strict=True)]
 
 
 def _ignored_fields(solver: str) -> set[str]:
