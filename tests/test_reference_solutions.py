@@ -333,10 +333,10 @@ def test_ghia_profiles_carry_no_net_flux(component: cavity.Component) -> None:
 
 def test_ghia_files_are_package_data() -> None:
     with open(ROOT / "pyproject.toml", "rb") as fh:
-        globs = tomllib.load(fh)["tool"]["setuptools"]["package-data"]["mpsbench.validations"]
+        globs = tomllib.load(fh)["tool"]["setuptools"]["package-data"]["mpsbench.validations.data"]
     for name, _ in cavity.FILES.values():
-        rel = f"data/{name}.csv"
-        assert (ROOT / "validations" / rel).is_file()
+        rel = f"{name}.csv"
+        assert (ROOT / "validations" / "data" / rel).is_file()
         assert any(fnmatch.fnmatch(rel, g) for g in globs), (rel, globs)
 
 

@@ -64,7 +64,8 @@ class SkinnedPairs:
         # sums, in the same order, as summing every pair with zero weight off the static ones).
         ri, rj = full.i[rigid_at], full.j[rigid_at]
         w = weight.w(full.r[rigid_at], re)
-        self.static_n = np.bincount(ri, w, full.n) + np.bincount(rj, w, full.n)
+        # bincount with weights sums in float64 (numpy's stubs type it as integer)
+        self.static_n = (np.bincount(ri, w, full.n) + np.bincount(rj, w, full.n)).astype(float)
         keep = np.ones(len(full), dtype=bool)
         keep[rigid_at] = False
         self.pairs = PairList(
