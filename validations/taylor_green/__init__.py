@@ -1,1 +1,6 @@
-"""Decaying 2-D Taylor-Green vortex on a periodic square; its exact fields are in ``reference``."""
+"""The Taylor-Green case: the decaying 2-D vortex on a periodic square (definition in
+:mod:`.case`; the exact fields in :mod:`.reference`)."""
+
+from .case import CASE
+
+__all__ = ["CASE"]
