@@ -266,7 +266,7 @@ def test_unknown_case_matches_by_run_id(baseline: Path, tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("name", ["diffusion", "couette", "water-jet", "dam-break",
-                                  "hydrostatic", "poiseuille", "taylor-green"])
+                                  "hydrostatic", "poiseuille", "taylor-green", "cavity"])
 def test_declared_rules_of_the_builtin_cases_are_valid(name: str) -> None:
     """Each declared rule names a metric the case records and is a rule compare accepts."""
     from mpsbench.cases import get_case

@@ -20,7 +20,7 @@ def _section(text: str, case: str) -> str:
 
 
 @pytest.mark.parametrize("case", ["diffusion", "couette", "water-jet", "dam-break", "hydrostatic",
-                                  "poiseuille", "taylor-green"])
+                                  "poiseuille", "taylor-green", "cavity"])
 def test_every_column_of_the_case_is_documented(case: str) -> None:
     section = _section(DOC.read_text(), case)
     c = get_case(case)

@@ -23,7 +23,7 @@ from mpsbench.results.records import read_record
 from mpsbench.results.study_spec import TOP_KEYS, load_study, parse_study
 
 BUILTIN = ("diffusion", "couette", "water-jet", "dam-break", "hydrostatic", "poiseuille",
-           "taylor-green")
+           "taylor-green", "cavity")
 SETTINGS = settings(max_examples=150, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 # text that looks like what people type: numbers, fractions, names, junk

@@ -232,7 +232,7 @@ def test_a_folder_that_cannot_be_written_is_one_line(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("name", ["diffusion", "couette", "water-jet", "dam-break",
-                                  "hydrostatic", "poiseuille", "taylor-green"])
+                                  "hydrostatic", "poiseuille", "taylor-green", "cavity"])
 def test_estimates_agree_with_the_runs_of_the_smoke_baseline(name: str) -> None:
     """Particles within 10 %, steps within 10 % of what the committed smoke runs did."""
     baseline = Path(__file__).resolve().parents[1] / "validations" / "baselines" / "smoke"

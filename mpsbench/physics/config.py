@@ -256,15 +256,23 @@ class Region:
 
 @dataclass(frozen=True)
 class WallMotion:
-    """Boundary particles tagged ``tag`` (``Particles.fields['wall_tag']``) move at ``velocity``."""
+    """Boundary particles tagged ``tag`` (``Particles.fields['wall_tag']``) move at ``velocity``.
+
+    ``displace = False``: the particles carry ``velocity`` (the viscous term and the
+    stabilization see it) but keep their positions, a wall sliding along itself such as a
+    cavity's lid or a belt: its surface moves, its particles stay.  A solver supports it when
+    its capabilities list the boundary ``sliding-walls``.
+    """
 
     tag: int
     velocity: tuple[float, float]
+    displace: bool = True
 
     def __post_init__(self) -> None:
         if not isinstance(self.tag, numbers.Integral) or isinstance(self.tag, bool):
             _fail("WallMotion", "tag", self.tag, "an integer")
         _vector("WallMotion", "velocity", self.velocity, "m/s")
+        _boolean("WallMotion", "displace", self.displace)
 
 
 def replace_validated(obj: Any, **changes: Any) -> Any:

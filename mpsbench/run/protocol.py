@@ -102,6 +102,8 @@ class Problem:
             boundaries.add("walls")
         if self.wall_motions:
             boundaries.add("moving-walls")
+        if any(not m.displace for m in self.wall_motions):
+            boundaries.add("sliding-walls")
         if self.inflow is not None:
             boundaries.add("inflow")
         if self.outflows:

@@ -64,9 +64,13 @@ from mpsbench.physics.neighbours import build_pairs
 from mpsbench.physics.operators import STABILIZATION, lattice_constants, number_density
 from mpsbench.physics.particles import Box, Kind, Particles
 from mpsbench.physics.weights import WeightFunction, get_weight
-from mpsbench.run.protocol import Health, Problem, SolverBase, health_of
+from mpsbench.run.protocol import Capabilities, Health, Problem, SolverBase, health_of
 
 FloatArray = NDArray[np.float64]
+
+#: the boundaries every backend built on this skeleton supports: the protocol's defaults and
+#: sliding walls (``WallMotion(displace=False)``, held in place by :meth:`_hold_anchored`)
+SCHEME_BOUNDARIES = Capabilities().boundaries | {"sliding-walls"}
 
 
 @dataclass(frozen=True)
@@ -158,9 +162,13 @@ class SchemeSolver(SolverBase):
         if problem.inflow is not None:
             self.inflow = InflowBoundary(problem.inflow, self.l0)
             self.p = Particles.concat([self.p, self.inflow.initial()])
+        self.anchored = False
         for motion in problem.wall_motions:
             tagged = self.p.fields.get("wall_tag", np.full(self.p.n, -1.0)) == motion.tag
-            self.p.vel[tagged & (self.p.kind != Kind.FLUID)] = motion.velocity
+            tagged &= self.p.kind != Kind.FLUID
+            self.p.vel[tagged] = motion.velocity
+            if not motion.displace:
+                self._anchor(tagged)
         self.n0, _ = reference_constants(self.p, self.weight, self.re, self.l0, self.box,
                                          m.n0_from)
         self.n0_lap, self.lam = reference_constants(self.p, self.weight, self.re_lap, self.l0,
@@ -194,6 +202,8 @@ class SchemeSolver(SolverBase):
         # 1-2: predictor (viscosity with the boundary velocities of step 1, gravity), move
         self._update_neighbours()
         rows = self._predict(dt, ph)
+        if self.anchored:
+            self._hold_anchored()
         if rows is not None:  # (without viscosity the row sums are not needed either)
             self.rho_lap = 2.0 * rows
         self._wrap()
@@ -218,6 +228,28 @@ class SchemeSolver(SolverBase):
         (:mod:`mpsbench.run.implicit_scheme`) solves a pressure Poisson equation instead."""
         self._update_neighbours()
         self._density_pressure(self.eos)
+
+    def _anchor(self, where: NDArray[np.bool_]) -> None:
+        """Sliding walls: remember where these particles are.  In fields, so that a backend
+        that reorders its particles, and the open boundaries, carry the marks along (a new
+        inflow row gets 0: not anchored)."""
+        f = self.p.fields
+        if "anchored" not in f:
+            f["anchored"] = np.zeros(self.p.n)
+            f["anchor_x"] = np.zeros(self.p.n)
+            f["anchor_y"] = np.zeros(self.p.n)
+        f["anchored"][where] = 1.0
+        f["anchor_x"][where] = self.p.pos[where, 0]
+        f["anchor_y"][where] = self.p.pos[where, 1]
+        self.anchored = True
+
+    def _hold_anchored(self) -> None:
+        """Put sliding-wall particles back where they were: the predictor moved every particle
+        by dt u, and these carry a velocity without a displacement."""
+        f = self.p.fields
+        m = f["anchored"] > 0.0
+        self.p.pos[m, 0] = f["anchor_x"][m]
+        self.p.pos[m, 1] = f["anchor_y"][m]
 
     def _wrap(self) -> None:
         if self.box.any_periodic:

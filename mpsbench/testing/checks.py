@@ -351,6 +351,11 @@ def _capability_probes() -> Iterator[tuple[str, Problem]]:
         "boundary 'moving-walls'",
         problems.channel_problem(nx=8, ny=4, models=models, top_velocity=(0.01, 0.0)),
     )
+    yield (
+        "boundary 'sliding-walls'",
+        problems.channel_problem(nx=8, ny=4, models=models, top_velocity=(0.01, 0.0),
+                                 sliding=True),
+    )
     yield "boundary 'inflow' + 'outflow'", problems.open_channel_problem(nx=8, ny=4, models=models)
     p = base()
     yield "boundary 'outflow'", dataclasses.replace(p, outflows=(Region((0.5, 0.0), (0.6, 0.1)),))

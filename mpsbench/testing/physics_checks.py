@@ -415,6 +415,56 @@ def check_stabilization_inner_only(make: Factory, caps: Capabilities) -> None:
         f"free-surface particle(s) by up to {worst:.3g} m/s: it applies to inner fluid only")
 
 
+def check_sliding_wall(make: Factory, caps: Capabilities, n_steps: int = 40) -> None:
+    """A sliding lid (``WallMotion(displace=False)``) keeps its particles in place, carries its
+    velocity and drags the fluid.
+
+    The x-periodic channel with its lid sliding at 0.01 m/s: after ``n_steps`` every lid
+    particle is where it started (1e-12 l0) with the lid velocity (1e-12 relative), the floor
+    is at rest, and the fluid row under the lid moves in +x, faster than the row above the
+    floor (viscosity carries the lid's velocity in).  A backend that moves the lid shows a
+    displacement of n dt U; one that drops its velocity leaves the fluid at rest.
+    """
+    u_lid = (0.01, 0.0)
+    problem = problems.channel_problem(models=_models(caps), top_velocity=u_lid, sliding=True,
+                                       nu=1.0e-4)
+    lid = problem.particles.fields["wall_tag"] == 1
+    x0 = problem.particles.pos.copy()
+    s = make()
+    s.setup(problem)
+    for _ in range(n_steps):
+        s.step(float(s.stable_dt()))
+    st = s.state()
+    # the state in the problem's order: match lid particles by kind and tag
+    tag = st.fields.get("wall_tag")
+    if tag is None or st.n != problem.particles.n:
+        raise SkipCheck("solver state carries no 'wall_tag' field in the problem's order")
+    lid_now = tag == 1
+    assert _same_rows(st.pos[lid_now], x0[lid]), (
+        "a sliding lid moved: its particles are up to "
+        f"{float(np.abs(st.pos[lid_now] - x0[lid]).max()) / problem.l0:.3g} l0 from where they "
+        f"started after {n_steps} steps")
+    dv = float(np.abs(st.vel[lid_now] - np.asarray(u_lid)).max())
+    assert dv <= 1e-12 * u_lid[0], f"the sliding lid's velocity changed by {dv:.3g} m/s"
+    fluid = st.kind == Kind.FLUID
+    y = st.pos[fluid, 1]
+    u = st.vel[fluid, 0]
+    top = u[y > y.max() - 0.5 * problem.l0].mean()
+    bottom = u[y < y.min() + 0.5 * problem.l0].mean()
+    assert top > 0.0 and top > bottom, (
+        f"the fluid under a sliding lid is not dragged: mean u {top:.3g} m/s under the lid, "
+        f"{bottom:.3g} m/s above the floor after {n_steps} steps")
+
+
+def _same_rows(a: np.ndarray, b: np.ndarray) -> bool:
+    """The same positions, up to order (a backend may reorder its particles)."""
+    if a.shape != b.shape:
+        return False
+    ka = a[np.lexsort(a.T[::-1])]
+    kb = b[np.lexsort(b.T[::-1])]
+    return bool(np.abs(ka - kb).max() <= 1e-12 * max(1.0, float(np.abs(kb).max())))
+
+
 # --------------------------------------------------------------------------- the catalogue
 
 
@@ -452,5 +502,9 @@ def physics_checks() -> list[Check]:
         Check("check_stabilization_inner_only", check_stabilization_inner_only,
               "the stabilization acts on inner fluid particles only",
               needs={**flow_walls, "features": frozenset({"stabilization"})}),
+        Check("check_sliding_wall", check_sliding_wall,
+              "a sliding lid stays in place, keeps its velocity and drags the fluid",
+              needs={"physics": frozenset({"flow"}),
+                     "boundaries": frozenset({"periodic-x", "walls", "sliding-walls"})}),
     ]
     return out

@@ -186,6 +186,7 @@ def channel_problem(
     ny: int = 8,
     l0: float = 0.01,
     top_velocity: tuple[float, float] | None = None,
+    sliding: bool = False,
     models: Models | None = None,
     dt: float | None = None,
     **physics: Any,
@@ -193,7 +194,8 @@ def channel_problem(
     """An x-periodic channel of ``ny`` fluid rows between a floor and a lid (no gravity).
 
     With ``top_velocity`` the lid rows carry ``wall_tag`` 1 and a
-    :class:`~mpsbench.physics.config.WallMotion` moves them (Couette flow).
+    :class:`~mpsbench.physics.config.WallMotion` moves them (Couette flow); with ``sliding``
+    they carry that velocity in place (``displace=False``).
     """
     length = nx * l0
     height = ny * l0
@@ -205,7 +207,8 @@ def channel_problem(
     fluid.fields["wall_tag"] = np.full(fluid.n, -1.0)
     p = Particles.concat([fluid, floor, lid])
     ph = FlowPhysics(**{"gravity": (0.0, 0.0), "nu": 1.0e-6, "c0": 1.0, **physics})
-    motions = () if top_velocity is None else (WallMotion(1, top_velocity),)
+    motions = () if top_velocity is None else (
+        WallMotion(1, top_velocity, displace=not sliding),)
     box = Box((0.0, -5.0 * l0), (length, height + 5.0 * l0), (True, False))
     return Problem(
         p,

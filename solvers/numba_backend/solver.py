@@ -45,7 +45,7 @@ from mpsbench.physics.config import DiffusionPhysics, FlowPhysics
 from mpsbench.physics.operators import DIM
 from mpsbench.physics.particles import Kind, Particles
 from mpsbench.run.protocol import Capabilities, Health, Problem
-from mpsbench.run.scheme import EquationOfState, SchemeSolver
+from mpsbench.run.scheme import SCHEME_BOUNDARIES, EquationOfState, SchemeSolver
 
 from . import formulas, fused, kernels, steps
 from ._jit import report, watch_compiles
@@ -84,7 +84,7 @@ class NumbaSolver(SchemeSolver):
 
     name = "numba"
     version = "2.0"
-    capabilities = Capabilities()
+    capabilities = Capabilities(boundaries=SCHEME_BOUNDARIES)
     options = (
         Option("threads", 0, "numba threads; 0: automatic (one below 8000 particles or in a "
                "worker process of a pool, else numba's thread count)", kind=int, minimum=0),

@@ -30,7 +30,7 @@ from mpsbench.physics.neighbours import PairList, build_pairs
 from mpsbench.physics.operators import STABILIZATION, number_density, pair_formula
 from mpsbench.physics.particles import Kind
 from mpsbench.run.protocol import Capabilities
-from mpsbench.run.scheme import EquationOfState, SchemeSolver
+from mpsbench.run.scheme import SCHEME_BOUNDARIES, EquationOfState, SchemeSolver
 
 from .neighbours import SkinnedPairs
 
@@ -42,7 +42,7 @@ class ReferenceSolver(SchemeSolver):
 
     name = "reference"
     version = "1.0"
-    capabilities = Capabilities()
+    capabilities = Capabilities(boundaries=SCHEME_BOUNDARIES)
 
     # ------------------------------------------------------------------ diffusion
     def _setup_diffusion(self, ph: DiffusionPhysics) -> tuple[float, FloatArray]:

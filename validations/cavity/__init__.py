@@ -1,1 +1,6 @@
-"""Lid-driven cavity; Ghia, Ghia & Shin's (1982) centreline velocities load from ``reference``."""
+"""The lid-driven cavity case (definition in :mod:`.case`); Ghia, Ghia & Shin's (1982)
+centreline velocities load, checked, from :mod:`.reference`."""
+
+from .case import CASE
+
+__all__ = ["CASE"]
