@@ -94,7 +94,7 @@ def test_tiers_hold_the_refinement_set_and_reset_alpha_s() -> None:
     quick = tc.CASE.expand("quick")
     head = [r for r in quick if all(r[k] == v for k, v in tc.RECOMMENDED.items())
             and not r["stabilization"]]
-    assert sorted(round(1 / r["l0"]) for r in head) == [20, 40, 80]
+    assert sorted(round(1 / r["l0"]) for r in head) == [20, 30, 40]
     off = [r for r in tc.CASE.expand("smoke", {"alpha_s": [0.02]}) if not r["stabilization"]]
     assert off and all(r["alpha_s"] == 0.01 for r in off)
 
