@@ -197,5 +197,11 @@ def test_rendered_links_are_only_http_relative_or_anchors(text: str) -> None:
     assert "<" not in re.sub(r"(`+)(.+?)\1", "", md, flags=re.S)  # no HTML outside code
 
 
+def test_markdown_escape_keeps_comparisons_readable() -> None:
+    """Only what can open a tag or an entity is escaped: arrows and >= stay as written."""
+    assert md_escape("0.103 U -> 0.049 U, T >= 8 s") == "0.103 U -> 0.049 U, T >= 8 s"
+    assert md_escape("a <b> & c") == "a &lt;b> &amp; c"
+
+
 def test_the_built_in_cases_are_registered() -> None:
     assert set(BUILTIN) <= set(CASES.names())

@@ -2,8 +2,9 @@
 
 Run ids, reasons, parameter values and manifest fields come from files anybody can edit and
 from plugin code.  In a Markdown report (report.md, summary.md, compare.md) :func:`md_escape`
-turns ``&``, ``<`` and ``>`` into entities (so no HTML gets through to a Markdown viewer; the
-text reads the same) and defuses links whose target is not :func:`safe_href`; in the page,
+turns ``&`` and ``<`` into entities (so no HTML tag or entity gets through to a Markdown viewer;
+``>`` cannot open a tag and stays, so "0.1 -> 0.05" and "T >= 8 s" read as written in the raw
+file too) and defuses links whose target is not :func:`safe_href`; in the page,
 ``mpsbench.results.html`` escapes everything and renders only safe links.
 """
 
@@ -53,7 +54,7 @@ def md_escape(text: Any) -> str:
 
 
 def _escape_plain(s: str) -> str:
-    s = s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    s = s.replace("&", "&amp;").replace("<", "&lt;")
 
     def link(m: re.Match[str]) -> str:
         if safe_href(m.group(2)):
