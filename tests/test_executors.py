@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -182,6 +183,18 @@ def test_dask_worker_death_crashes_only_its_run(tmp_path: Path, dask_client: Any
     assert "worker process died" in by_die[True]["reason"]
     assert load_record(tmp_path / "runs" / f"{by_die[True]['run_id']}.json") is not None
     dask_client.wait_for_workers(2, timeout=60)  # the cluster recovers
+
+
+def test_dask_scratch_folders_live_in_the_worker_directory(dask_client: Any) -> None:
+    """A worker killed mid-run cannot remove its scratch folder: it is made inside the worker's
+    own directory, which dask removes with the dead worker (before: /tmp/mpsbench-run-* left
+    behind, five per run of this file)."""
+    from mpsbench.results.executors import _worker_directory
+
+    assert _worker_directory() is None  # not in a worker: the system's temp folder
+    where = dask_client.submit(_worker_directory, pure=False).result()
+    assert where is not None and Path(where).is_dir()
+    assert Path(where).resolve() != Path(tempfile.gettempdir()).resolve()
 
 
 def test_dask_executor_local_cluster_of_its_own(tmp_path: Path) -> None:

@@ -153,7 +153,7 @@ def run_detached(task: Task, env: dict[str, Any]) -> tuple[str, bytes | None]:
     from mpsbench.results.provenance import machine_environment
 
     env = {**env, **machine_environment()}  # the worker's machine, not the client's
-    scratch = tempfile.mkdtemp(prefix="mpsbench-run-")
+    scratch = tempfile.mkdtemp(prefix="mpsbench-run-", dir=_worker_directory())
     try:
         execute_task(task, scratch, env)
         runs = Path(scratch) / "runs"
@@ -162,6 +162,20 @@ def run_detached(task: Task, env: dict[str, Any]) -> tuple[str, bytes | None]:
         return text, (npz.read_bytes() if npz.exists() else None)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _worker_directory() -> str | None:
+    """The dask worker's own local directory (None outside a worker: the system's temp).
+
+    A worker killed in the middle of a run never reaches the ``finally`` that removes its
+    scratch folder; inside the worker's directory the folder goes with it (dask removes the
+    directories of dead workers when the next one starts on that machine)."""
+    try:
+        from distributed import get_worker
+
+        return str(get_worker().local_directory)
+    except (ImportError, ValueError, AttributeError):
+        return None
 
 
 def _import_distributed() -> Any:
