@@ -55,9 +55,13 @@ class GradientModel:
         c = np.zeros_like(w)
         nz = w != 0
         c[nz] = self.radial(pairs.r[nz], w[nz])
+        del nz
         pi, pj, mi, mj = p[pairs.i], p[pairs.j], pmin[pairs.i], pmin[pairs.j]
         ci = self.pair(pi, pj, mi, mj) * c  # term of i from j, along +dx
         cj = self.pair(pj, pi, mj, mi) * c  # term of j from i, along -dx
+        # the gathers and c go before the scatter's temporaries come: this call was the
+        # reference backend's memory peak (issue 20)
+        del pi, pj, mi, mj, c
         out = np.empty((pairs.n, 2))
         for ax in range(2):
             d = pairs.dx[:, ax]

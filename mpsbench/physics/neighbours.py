@@ -63,8 +63,13 @@ class PairList:
         """phi_j - phi_i per pair (works for (n,) and (n, k) arrays)."""
         if phi.ndim == 1:
             return phi.take(self.j) - phi.take(self.i)
-        # Gathering rows of an (n, k) array is ~10x slower in numpy than gathering k
-        # contiguous columns, and this is the hottest line of the reference backend.
+        if phi.flags.c_contiguous:
+            # np.take along axis 0 copies whole rows: 1.8 ms against 3.1 ms for the column
+            # gathers below at 610k pairs (40k particles); fancy indexing phi[j] is ~10x slower
+            out = np.take(phi, self.j, axis=0)
+            out -= np.take(phi, self.i, axis=0)
+            return out
+        # a column-major (n, k) array (a view of (k, n) storage): gather k contiguous columns
         out = np.empty((len(self.i), phi.shape[1]))
         for c in range(phi.shape[1]):
             col = np.ascontiguousarray(phi[:, c])
@@ -117,6 +122,7 @@ def build_pairs(pos: FloatArray, cutoff: float, box: Box | None = None) -> PairL
     order = np.argsort(key)
     i = np.ascontiguousarray(ij[order, 0], dtype=np.intp)
     j = np.ascontiguousarray(ij[order, 1], dtype=np.intp)
+    del ij, key, order  # 32 bytes a pair that the refresh below need not share memory with
     pl = PairList(i, j, np.zeros((len(i), 2)), np.zeros(len(i)), n, cutoff)
     pl.refresh(pos, box)
     return pl

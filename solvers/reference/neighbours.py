@@ -38,9 +38,13 @@ class SkinnedPairs:
         if len(disp):
             self.moved += float(np.sqrt(np.max(disp[:, 0] ** 2 + disp[:, 1] ** 2)))
 
+    def stale(self, p: Particles) -> bool:
+        """Whether the next :meth:`get` rebuilds the list."""
+        return self.pairs is None or 2.0 * self.moved > self.skin or self.pairs.n != p.n
+
     def get(self, p: Particles, weight: WeightFunction, re: float) -> PairList:
         """The current pair list with fresh ``dx`` and ``r`` (rebuilt when stale)."""
-        if self.pairs is None or 2.0 * self.moved > self.skin or self.pairs.n != p.n:
+        if self.pairs is None or self.stale(p):
             self._build(p, weight, re)
         else:
             self.pairs.refresh(p.pos, self.box)
@@ -48,6 +52,10 @@ class SkinnedPairs:
         return self.pairs
 
     def _build(self, p: Particles, weight: WeightFunction, re: float) -> None:
+        # the old list goes first: a build holds the skinned list and its filtered copy, and
+        # with the old one still alive that was the step's memory peak (issue 20)
+        self.pairs = None
+        self.no_dummy = np.zeros(0, dtype=bool)
         full = build_pairs(p.pos, self.r_max + self.skin, self.box)
         ki, kj = p.kind[full.i], p.kind[full.j]
         solid_i = (ki != Kind.FLUID) & (ki != Kind.INFLOW)
@@ -68,9 +76,17 @@ class SkinnedPairs:
         self.static_n = (np.bincount(ri, w, full.n) + np.bincount(rj, w, full.n)).astype(float)
         keep = np.ones(len(full), dtype=bool)
         keep[rigid_at] = False
-        self.pairs = PairList(
-            full.i[keep], full.j[keep], full.dx[keep], full.r[keep], full.n, full.cutoff
-        )
+        del ki, kj, solid_i, boundary, cand, ci, cj, rigid_at, ri, rj, w
+        # filter one array at a time, dropping each full one as its copy is made
+        i = full.i[keep]
+        full.i = i
+        j = full.j[keep]
+        full.j = j
+        dx = full.dx[keep]
+        full.dx = dx
+        r = full.r[keep]
+        self.pairs = PairList(i, j, dx, r, full.n, full.cutoff)
+        del full
         kind = p.kind
         self.no_dummy = (kind[self.pairs.i] != Kind.DUMMY) & (kind[self.pairs.j] != Kind.DUMMY)
         self.moved = 0.0

@@ -66,6 +66,11 @@ class ReferenceSolver(SchemeSolver):
         self.du = np.zeros_like(self.p.vel)
 
     def _update_neighbours(self) -> None:
+        if self.neigh.stale(self.p) and hasattr(self, "pairs"):
+            # let the old list and its weights go before the new one is built (memory peak);
+            # _number_density computes the weights again before the gradient needs them
+            del self.pairs
+            self._w = np.zeros(0)
         self.pairs: PairList = self.neigh.get(self.p, self.weight, self.re)
         self.counters["neighbour_builds"] = self.neigh.builds
 
