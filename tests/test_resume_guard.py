@@ -399,3 +399,20 @@ def test_a_plugin_name_that_would_climb_out_of_a_folder_is_ignored(
     ignored = {e.name: e.error for e in reg.ignored}
     assert set(ignored) == {"../../x", "a/b", ".hidden"}
     assert all("the name is not allowed" in str(why) for why in ignored.values())
+
+
+@pytest.mark.parametrize(("case", "value", "allowed"), [
+    ("taylor-green", "0.03", "whole number"), ("couette", "3e-5", "whole number"),
+    ("cavity", "0.07", "whole number"), ("diffusion", "0.03", "whole number"),
+    ("poiseuille", "3e-5", "whole number"), ("water-jet", "0.03", "whole multiple")])
+def test_a_spacing_the_case_refuses_stops_before_any_run(
+        case: str, value: str, allowed: str, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The case's own check (L / l0 a whole number) is bad input like a parameter's bounds:
+    exit 2 with the parameter, the value and what is allowed, and no run recorded."""
+    out = tmp_path / "r"
+    assert cli.main(["validate", case, "--tier", "smoke", "--set", f"l0={value}",
+                     "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"case {case}: " in err and allowed in err and "l0" in err
+    assert not (out / "runs").exists()

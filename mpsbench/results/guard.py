@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from mpsbench.cases import Case, get_case
-from mpsbench.errors import UsageError
+from mpsbench.errors import ConfigError, UsageError
 from mpsbench.results.records import Task
 from mpsbench.run.estimate import RunEstimate
 
@@ -104,7 +104,11 @@ def estimate_plan(tasks: Iterable[Task]) -> PlanEstimate:
             continue
         try:
             est = case.estimate(dict(task.params))
-        except Exception:  # noqa: BLE001 - e.g. a spacing the case refuses: the run says why
+        except ConfigError as exc:
+            # a value the case refuses (a spacing that does not divide the domain): bad
+            # input, stopped before any run, as the parameters' own checks do
+            raise UsageError(f"case {task.case}: {exc}") from None
+        except Exception:  # noqa: BLE001 - a broken estimate: the run itself says what fails
             est = None
         if est is not None:
             out.estimates.append((task, est))

@@ -219,11 +219,7 @@ class CouetteCase(Case):
     # ------------------------------------------------------------------ running
     def build(self, params: dict[str, Any]) -> tuple[Problem, np.ndarray]:
         """The problem and the y of the fluid rows."""
-        l0 = float(params["l0"])
-        n = round(L / l0)
-        if abs(n * l0 - L) > 1e-9 * L:
-            raise ConfigError(f"parameter l0 = {l0!r} is not allowed: L/N = {L:g}/N m for a "
-                              "whole number N")
+        n = _rows(params)
         l0 = L / n
         re = float(params["re_ratio"])
         nx = math.ceil(2.0 * (re + 0.5)) + 1
@@ -263,7 +259,7 @@ class CouetteCase(Case):
 
     def estimate(self, params: dict[str, Any]) -> RunEstimate:
         """The particles of :meth:`build`; steps at the viscous limit on the lattice."""
-        n = round(L / float(params["l0"]))
+        n = _rows(params)
         l0, re = L / n, float(params["re_ratio"])
         nx = math.ceil(2.0 * (re + 0.5)) + 1
         walls = 2 * nx * (1 + max(3, math.ceil(re) - 1))
@@ -363,8 +359,18 @@ class CouetteCase(Case):
         return analysis.findings(self.model_records(records), self.uncertainty(records))
 
 
+def _rows(params: dict[str, Any]) -> int:
+    """N = L / l0, refused unless a whole number (the plates must sit on the lattice)."""
+    l0 = float(params["l0"])
+    n = round(L / l0)
+    if n < 1 or abs(n * l0 - L) > 1e-9 * L:
+        raise ConfigError(f"parameter l0 = {l0!r} is not allowed: L/N = {L:g}/N m for a "
+                          "whole number N")
+    return n
+
+
 def _spacing(params: dict[str, Any]) -> float:
-    return L / round(L / float(params["l0"]))
+    return L / _rows(params)
 
 
 CASE = CouetteCase()

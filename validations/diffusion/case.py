@@ -137,10 +137,7 @@ class DiffusionCase(Case):
     # ------------------------------------------------------------------ running
     def build(self, params: dict[str, Any]) -> Problem:
         """The problem for one parameter set (the particles carry phi0 in ``fields['phi']``)."""
-        l0 = float(params["l0"])
-        n = round(1.0 / l0)
-        if abs(n * l0 - 1.0) > 1e-9:
-            raise ConfigError(f"parameter l0 = {l0!r} is not allowed: 1/N for a whole number N")
+        n = side_count(params)
         box = Box((0.0, 0.0), (1.0, 1.0), (True, True))
         p = lattice_in_box(box, 1.0 / n)
         if params["jitter"] > 0:
@@ -159,7 +156,7 @@ class DiffusionCase(Case):
     def estimate(self, params: dict[str, Any]) -> RunEstimate:
         """N^2 particles; the fixed dt against the forward-Euler limit of the lattice (for a
         jittered cloud, the limit of the lattice it was jittered from)."""
-        n = round(1.0 / float(params["l0"]))
+        n = side_count(params)
         particles = n * n
         lap, wf, re = params["laplacian"], params["weight"], float(params["re_ratio"])
         dt = float(params["dt"])
@@ -224,4 +221,14 @@ class DiffusionCase(Case):
         return analysis.findings(self.model_records(records), self.uncertainty(records))
 
 
+def side_count(params: dict[str, Any]) -> int:
+    """N = 1 / l0, refused unless a whole number (the lattice must fill the periodic square)."""
+    l0 = float(params["l0"])
+    n = round(1.0 / l0)
+    if n < 1 or abs(n * l0 - 1.0) > 1e-9:
+        raise ConfigError(f"parameter l0 = {l0!r} is not allowed: 1/N for a whole number N")
+    return n
+
+
 CASE = DiffusionCase()
+

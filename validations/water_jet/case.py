@@ -178,6 +178,8 @@ class WaterJetCase(Case):
         """Plate rows, inflow rows, the initial jet column and, at steady state, a film of
         half the jet width along the whole plate; steps at the acoustic limit with |u| = U."""
         b, speed, l0 = params["b"], params["U"], params["l0"]
+        # the geometry's own checks (b, the gap and the plate whole multiples of l0)
+        JetGeometry(b, l0, params["nozzle_gap"] * b, params["plate_length"] * b)
         plate = params["plate_length"] * b
         fluid = (params["nozzle_gap"] * b * b + 0.5 * b * plate) / l0**2
         walls = (plate / l0 + 1) * 4 + 4 * b / l0

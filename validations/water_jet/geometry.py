@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mpsbench.errors import ConfigError
 from mpsbench.physics.config import FlowPhysics, Inflow, Models, Region, TimeStepping
 from mpsbench.physics.particles import Box, Kind, Particles, block, wall_layers
 from mpsbench.run.protocol import Problem
@@ -44,12 +45,12 @@ class JetGeometry:
         for name in ("b", "nozzle_gap", "plate_length"):
             ratio = getattr(self, name) / self.l0
             if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 4:
-                raise ValueError(
+                raise ConfigError(
                     f"water jet: {name} = {getattr(self, name):g} m must be a whole multiple "
                     f"(>= 4) of l0 = {self.l0:g} m (ratio {ratio:.6g})"
                 )
         if self.plate_length < 3.0 * self.b:
-            raise ValueError(
+            raise ConfigError(
                 f"water jet: plate_length = {self.plate_length:g} m must be >= 3 b "
                 f"= {3 * self.b:g} m"
             )
