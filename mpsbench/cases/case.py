@@ -104,6 +104,10 @@ class Case:
     # Refinement sets in l0 and dt of the headline metrics (docs/method.md section 9): the
     # report gets a numerical_uncertainty table and ``uncertainty(records)`` gives u_num per run.
     refinements: tuple[Refinement, ...] = ()
+    # A boolean parameter -> the parameters that do nothing while it is false
+    # (``{"stabilization": ("alpha_s",)}``): :meth:`expand` puts those back to their defaults,
+    # so such runs are not made twice under two names.
+    inactive_without: dict[str, tuple[str, ...]] = {}
 
     # ---- parameters
     def param(self, name: str) -> Param:
@@ -144,6 +148,9 @@ class Case:
                 params = self.defaults()
                 params.update(dict(zip(keys, combo, strict=True)))
                 params = {k: self.param(k).check(v) for k, v in params.items()}
+                for flag, names in self.inactive_without.items():
+                    if not params.get(flag, True):
+                        params.update({n: self.param(n).default for n in names})
                 sig = _signature(params)
                 if sig not in seen:
                     seen.add(sig)

@@ -121,15 +121,6 @@ COMPARE: dict[str, tuple[str, float]] = {
 }
 
 
-def canonical(params: dict[str, Any]) -> dict[str, Any]:
-    """The stabilization coefficient does not matter without stabilization."""
-    p = dict(params)
-    if not p["stabilization"]:
-        for name in STAB_ONLY:
-            p[name] = next(q.default for q in PARAMS if q.name == name)
-    return p
-
-
 def side_count(params: dict[str, Any]) -> int:
     n = round(SIDE / float(params["l0"]))
     if n < 8 or abs(n * float(params["l0"]) - SIDE) > 1e-9 * SIDE:
@@ -179,19 +170,9 @@ class CavityCase(Case):
     headline = "rms_error_with_u_num"
     # u_num of the profile errors in l0 at fixed cfl; order 1 assumed with two levels (the
     # corner singularities and the wall treatment are first order)
+    inactive_without = {"stabilization": STAB_ONLY}
     refinements = (Refinement("l0", ("rms_error", "u_rms_error", "v_rms_error"), SPACE,
                               order=1.0),)
-
-    def expand(self, tier: str, overrides: dict[str, Any] | None = None, *,
-               part: str = "all") -> list[dict[str, Any]]:
-        out, seen = [], set()
-        for params in super().expand(tier, overrides, part=part):
-            p = canonical(params)
-            key = tuple(sorted((k, repr(v)) for k, v in p.items()))
-            if key not in seen:
-                seen.add(key)
-                out.append(p)
-        return out
 
     def estimate(self, params: dict[str, Any]) -> RunEstimate:
         """Fluid N^2, walls and lid (four rows each, with the corners); acoustic or viscous

@@ -127,16 +127,6 @@ COMPARE: dict[str, tuple[str, float]] = {
 }
 
 
-def canonical(params: dict[str, Any]) -> dict[str, Any]:
-    """The stabilization coefficient does not matter without stabilization: put it back to
-    its default, so such runs are not repeated under two names."""
-    p = dict(params)
-    if not p["stabilization"]:
-        for name in STAB_ONLY:
-            p[name] = next(q.default for q in PARAMS if q.name == name)
-    return p
-
-
 def _counts(params: dict[str, Any]) -> tuple[int, int, float]:
     l0 = float(params["l0"])
     return max(2, round(params["width"] / l0)), max(2, round(params["height"] / l0)), l0
@@ -174,19 +164,9 @@ class HydrostaticCase(Case):
     metrics = METRICS
     compare = COMPARE
     headline = "floor_pressure_error_with_u_num"
+    inactive_without = {"stabilization": STAB_ONLY}
     refinements = (Refinement("l0", ("floor_pressure_error", "rms_speed_late"), SPACE,
                               order=1.0),)
-
-    def expand(self, tier: str, overrides: dict[str, Any] | None = None, *,
-               part: str = "all") -> list[dict[str, Any]]:
-        out, seen = [], set()
-        for params in super().expand(tier, overrides, part=part):
-            p = canonical(params)
-            key = tuple(sorted((k, repr(v)) for k, v in p.items()))
-            if key not in seen:
-                seen.add(key)
-                out.append(p)
-        return out
 
     def estimate(self, params: dict[str, Any]) -> RunEstimate:
         """Column and tank particles (four boundary layers), acoustic steps at |u| = 0."""

@@ -130,15 +130,6 @@ COMPARE: dict[str, tuple[str, float]] = {
 }
 
 
-def canonical(params: dict[str, Any]) -> dict[str, Any]:
-    """The stabilization coefficient does not matter without stabilization."""
-    p = dict(params)
-    if not p["stabilization"]:
-        for name in STAB_ONLY:
-            p[name] = next(q.default for q in PARAMS if q.name == name)
-    return p
-
-
 def side_count(params: dict[str, Any]) -> int:
     n = round(SIDE / float(params["l0"]))
     if n < 8 or abs(n * float(params["l0"]) - SIDE) > 1e-9 * SIDE:
@@ -182,19 +173,9 @@ class TaylorGreenCase(Case):
     headline = f"velocity_error_with_u_num_N-{HEADLINE_N}"
     # u_num of the velocity errors in l0 at fixed cfl (dt falls with l0); order 2 assumed with
     # two levels (a consistent gradient and Laplacian on the lattice)
+    inactive_without = {"stabilization": STAB_ONLY}
     refinements = (Refinement("l0", ("velocity_error", *(tm.time_key(f) for f in TIME_FRACTIONS
                                                          if f < 1.0)), SPACE, order=2.0),)
-
-    def expand(self, tier: str, overrides: dict[str, Any] | None = None, *,
-               part: str = "all") -> list[dict[str, Any]]:
-        out, seen = [], set()
-        for params in super().expand(tier, overrides, part=part):
-            p = canonical(params)
-            key = tuple(sorted((k, repr(v)) for k, v in p.items()))
-            if key not in seen:
-                seen.add(key)
-                out.append(p)
-        return out
 
     def estimate(self, params: dict[str, Any]) -> RunEstimate:
         """N^2 fluid particles; steps at the acoustic or the viscous limit on the lattice."""
