@@ -145,6 +145,23 @@ def row_label(model: str, weight: str) -> str:
     return f"{model} / {weight}"
 
 
+def run_table(records: list[dict[str, Any]], label: Callable[[dict[str, Any]], str],
+              columns: Sequence[str], sort: Iterable[str] = ()) -> pd.DataFrame:
+    """One row per run, completed or not (``status`` and ``reason`` among ``columns`` say
+    which), indexed by ``label(record)`` (with the solver when there are several), sorted by
+    model and ``sort``; columns a record set does not have are left out."""
+    if not records:
+        return pd.DataFrame()
+    df = sort_models(pd.DataFrame(records), sort)
+    several = several_solvers(df)
+    out = pd.DataFrame({"configuration": [
+        label(r) + (f" [{r['solver']}]" if several else "") for r in rows(df)]})
+    for c in columns:
+        if c in df.columns:
+            out[c] = df[c].to_numpy()
+    return out.set_index("configuration")
+
+
 def pivot(
     df: pd.DataFrame, value: str, columns: str = "re_ratio", column_label: str = "r_e/l0 = {:g}",
     cell: Callable[[pd.Series], Any] | None = None,

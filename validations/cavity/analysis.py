@@ -66,19 +66,8 @@ def gates(records: list[dict[str, Any]]) -> list[CaseCheck]:
 
 
 # ---------------------------------------------------------------------- tables
-def run_table(records: list[dict[str, Any]]) -> pd.DataFrame:
-    if not records:
-        return pd.DataFrame()
-    df = an.sort_models(pd.DataFrame(records), ["gradient", "stabilization", "l0"])
-    cols = ["status", "rms_error", "u_rms_error", "v_rms_error", "max_error", "u_min",
-            "unsteadiness", "particles_lost", "reason"]
-    out = pd.DataFrame({"configuration": [
-        label(r) + (f" [{r['solver']}]" if an.several_solvers(df) else "")
-        for r in an.rows(df)]})
-    for c in cols:
-        if c in df.columns:
-            out[c] = df[c].to_numpy()
-    return out.set_index("configuration")
+RUN_COLUMNS = ("status", "rms_error", "u_rms_error", "v_rms_error", "max_error", "u_min",
+               "unsteadiness", "particles_lost", "reason")
 
 
 def tables(records: list[dict[str, Any]], unc: NumericalUncertainty) -> dict[str, Any]:
@@ -92,7 +81,7 @@ def tables(records: list[dict[str, Any]], unc: NumericalUncertainty) -> dict[str
             "u_rms_error": [unc.of(r, "u_rms_error").text(_u) for r in an.rows(head)],
             "v_rms_error": [unc.of(r, "v_rms_error").text(_u) for r in an.rows(head)],
         }).set_index("configuration")
-    runs = run_table(records)
+    runs = an.run_table(records, label, RUN_COLUMNS, ["gradient", "stabilization", "l0"])
     if not runs.empty:
         out["runs"] = runs
     return {k: v for k, v in out.items() if not v.empty}

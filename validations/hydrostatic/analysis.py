@@ -103,26 +103,21 @@ def claims(records: list[dict[str, Any]]) -> list[CaseCheck]:
 
 
 # ---------------------------------------------------------------------- tables
+REST_COLUMNS = ("status", "rms_speed_late", "rms_speed_end", "settling_time", "surface_rise",
+                "surface_rise_max", "particles_lost", "floor_pressure_error",
+                "pressure_fluctuation", "reason")
+
+
+def _rest_label(r: Any) -> str:
+    return (f"{r['laplacian']} / {r['gradient']}, "
+            + ("stabilized" if r["stabilization"] else "no stabilization")
+            + f", l0 = {float(r['l0']):g} m, T = {float(r['end_time']):g} s")
+
+
 def rest_table(records: list[dict[str, Any]]) -> pd.DataFrame:
     """Every run (completed or not): does the column stay at rest?"""
-    if not records:
-        return pd.DataFrame()
-    df = pd.DataFrame(records)
-    cols = ["status", "rms_speed_late", "rms_speed_end", "settling_time", "surface_rise",
-            "surface_rise_max", "particles_lost", "floor_pressure_error",
-            "pressure_fluctuation", "reason"]
-    df = an.sort_models(df, ["gradient", "stabilization", "l0", "end_time"])
-    out = pd.DataFrame({
-        "configuration": [
-            f"{r['laplacian']} / {r['gradient']}, "
-            + ("stabilized" if r["stabilization"] else "no stabilization")
-            + f", l0 = {float(r['l0']):g} m, T = {float(r['end_time']):g} s"
-            + (f" [{r['solver']}]" if an.several_solvers(df) else "")
-            for r in an.rows(df)]})
-    for c in cols:
-        if c in df.columns:
-            out[c] = df[c].to_numpy()
-    return out.set_index("configuration")
+    return an.run_table(records, _rest_label, REST_COLUMNS,
+                        ["gradient", "stabilization", "l0", "end_time"])
 
 
 def tables(records: list[dict[str, Any]], unc: NumericalUncertainty) -> dict[str, Any]:

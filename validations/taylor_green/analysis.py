@@ -127,21 +127,9 @@ def convergence_table(df: pd.DataFrame) -> pd.DataFrame:
     return t[lead + [c for c in t.columns if c not in lead]].reset_index(drop=True)
 
 
-def run_table(records: list[dict[str, Any]]) -> pd.DataFrame:
-    """Every run (completed or not): errors, energy, pressure, disorder."""
-    if not records:
-        return pd.DataFrame()
-    df = an.sort_models(pd.DataFrame(records), ["gradient", "stabilization", "l0"])
-    cols = ["status", time_key(0.1), "velocity_error", "energy_error", "decay_rate_error",
-            "pressure_error", "number_density_deviation", "surface_flagged", "disorder",
-            "min_spacing", "momentum_drift", "reason"]
-    out = pd.DataFrame({"configuration": [
-        label(r) + (f" [{r['solver']}]" if an.several_solvers(df) else "")
-        for r in an.rows(df)]})
-    for c in cols:
-        if c in df.columns:
-            out[c] = df[c].to_numpy()
-    return out.set_index("configuration")
+RUN_COLUMNS = ("status", time_key(0.1), "velocity_error", "energy_error", "decay_rate_error",
+               "pressure_error", "number_density_deviation", "surface_flagged", "disorder",
+               "min_spacing", "momentum_drift", "reason")
 
 
 def tables(records: list[dict[str, Any]], unc: NumericalUncertainty) -> dict[str, Any]:
@@ -154,7 +142,7 @@ def tables(records: list[dict[str, Any]], unc: NumericalUncertainty) -> dict[str
             **{f"at {f:g} T": [unc.of(r, time_key(f) if f < 1 else "velocity_error").text(an.pct)
                                for r in an.rows(head)] for f in TIME_FRACTIONS},
         }).set_index("configuration")
-    runs = run_table(records)
+    runs = an.run_table(records, label, RUN_COLUMNS, ["gradient", "stabilization", "l0"])
     if not runs.empty:
         out["runs"] = runs
     conv = convergence_table(df)
