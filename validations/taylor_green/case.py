@@ -50,6 +50,7 @@ from mpsbench.run.probes import Callback, Snapshot
 from mpsbench.run.protocol import Problem
 from mpsbench.run.runner import run
 
+from ..paper import RE_RATIOS
 from . import metrics as tm
 from .metrics import C0, HEADLINE_N, RECOMMENDED, RHO, SIDE, SPEED, TIME_FRACTIONS
 
@@ -100,6 +101,8 @@ TIERS: dict[str, list[Grid]] = {
          "gradient": list(an.GRADIENT_MODELS), "stabilization": [False, True],
          "reynolds": [100.0, 1000.0], "l0": [SIDE / 20, SIDE / 40]},
         REFINE_PAPER | {"reynolds": [100.0, 1000.0], "stabilization": [False, True]},
+        # the interaction radius: the lattice-strain pressure falls with it (docs/method.md 6g)
+        {"re_ratio": list(RE_RATIOS), "l0": [SIDE / 20, SIDE / 40]},
     ],
 }
 
