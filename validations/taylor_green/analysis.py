@@ -175,9 +175,14 @@ def findings(records: list[dict[str, Any]], unc: NumericalUncertainty) -> str:
     cell = an.select(df[df["n"] == HEADLINE_N] if not df.empty else df,
                      **RECOMMENDED, stabilization=False)
     if not cell.empty:
-        u = unc.of(cell.iloc[0].to_dict(), "velocity_error")
-        lines.append(f"- **Numerical uncertainty** of the velocity error at T, "
-                     f"{label(cell.iloc[0])}: {u.text(an.pct)}; {u.detail(an.pct)}.")
+        row = an.rows(cell)[0]
+        # the refinement set in l0 of the recommended cell: observed order (or why there is
+        # none) and u_num of the error early and at the end
+        for frac in (0.1, 1.0):
+            metric = "velocity_error" if frac == 1.0 else time_key(frac)
+            u = unc.of(row, metric)
+            lines.append(f"- **Refinement in l0** of the velocity error at {frac:g} T, "
+                         f"{label(row)}: {u.text(an.pct)}; {u.detail(an.pct)}.")
     for r in records:
         if r.get("status") != "completed":
             lines.append(f"- **{label(r)}**: {r.get('status')} ({r.get('reason', '')}).")
