@@ -200,3 +200,17 @@ def test_callback_and_schedule() -> None:
 
 
 # --------------------------------------------------------------------------- VTU
+
+
+def test_kernel_average_of_columns_is_each_column_averaged() -> None:
+    """(n, k) values give the k averages of one neighbour search, bit for bit those of k calls,
+    and NaN rows where no particle is near."""
+    rng = np.random.default_rng(3)
+    pos = rng.random((200, 2))
+    vals = rng.normal(size=(200, 2))
+    pts = np.array([[0.5, 0.5], [0.1, 0.9], [5.0, 5.0]])
+    both = kernel_average(pts, pos, vals, 0.15)
+    assert both.shape == (3, 2)
+    for c in range(2):
+        np.testing.assert_array_equal(both[:, c], kernel_average(pts, pos, vals[:, c], 0.15))
+    assert np.isnan(both[2]).all() and np.isfinite(both[:2]).all()

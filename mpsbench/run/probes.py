@@ -82,21 +82,29 @@ def kernel_average(
     radius: float,
     boxsize: FloatArray | None = None,
 ) -> FloatArray:
-    """Shepard average of ``values`` at ``points`` with weight (1 - r/R)^3; NaN where empty."""
+    """Shepard average of ``values`` at ``points`` with weight (1 - r/R)^3; NaN where empty.
+
+    ``values`` (n,) gives (m,); (n, k) gives (m, k), every column from one neighbour search."""
     points = np.atleast_2d(np.asarray(points, float))
+    shape = (len(points), *np.shape(values)[1:])
     if len(positions) == 0:
-        return np.full(len(points), np.nan)
+        return np.full(shape, np.nan)
     tree = cKDTree(positions, boxsize=boxsize)
     sdm = tree.sparse_distance_matrix(
         cKDTree(points, boxsize=boxsize), radius, output_type="coo_matrix"
     )
     # (the coo output keeps exact zeros, so coincident points are counted)
     w = (1.0 - sdm.data / radius) ** 3
-    num = np.bincount(sdm.col, w * values[sdm.row], len(points))
     den = np.bincount(sdm.col, w, len(points))
-    out = np.full(len(points), np.nan)
     ok = den > 0
-    out[ok] = num[ok] / den[ok]
+    out = np.full(shape, np.nan)
+    if values.ndim == 1:
+        num = np.bincount(sdm.col, w * values[sdm.row], len(points))
+        out[ok] = num[ok] / den[ok]
+        return out
+    for c in range(values.shape[1]):
+        num = np.bincount(sdm.col, w * values[sdm.row, c], len(points))
+        out[ok, c] = num[ok] / den[ok]
     return out
 
 

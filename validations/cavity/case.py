@@ -195,17 +195,15 @@ class CavityCase(Case):
         line = np.linspace(0.0, SIDE, 41)
         dense = np.vstack([np.column_stack([np.full(41, 0.5), line]),
                            np.column_stack([line, np.full(41, 0.5)])])
+        # the probe's points and layout, fixed for the run (the tables are read once)
+        pts, radius = np.vstack([points, dense]), cm.SAMPLE_RADIUS * l0
+        n_u, k = len(cm.ghia_points(reynolds)["u"][0]), len(points)
 
         def sample(s: Any) -> np.ndarray:
             st = s.state()
             f = st.kind == Kind.FLUID
-            pos, vel = st.pos[f], st.vel[f]
-            radius = cm.SAMPLE_RADIUS * l0
-            pts = np.vstack([points, dense])
-            u = kernel_average(pts, pos, vel[:, 0], radius)
-            v = kernel_average(pts, pos, vel[:, 1], radius)
-            n_u = len(cm.ghia_points(reynolds)["u"][0])
-            k = len(points)
+            uv = kernel_average(pts, st.pos[f], st.vel[f], radius)
+            u, v = uv[:, 0], uv[:, 1]
             return np.concatenate([u[:n_u], v[n_u:k], u[k:k + 41], v[k + 41:]])
 
         probe = Callback("centrelines", sample, every=end / cm.SAMPLES)
@@ -216,7 +214,6 @@ class CavityCase(Case):
         if not res.ok or not len(t):
             return CaseRun(metrics, [res])
         samples = np.asarray(probe.values, float)
-        k = len(points)
         mean = cm.window_mean(t, samples, end)
         u, v = cm.split(mean[:k], reynolds)
         metrics.update(cm.profile_errors(u, v, reynolds))
