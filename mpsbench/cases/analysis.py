@@ -145,6 +145,13 @@ def row_label(model: str, weight: str) -> str:
     return f"{model} / {weight}"
 
 
+def not_completed(records: list[dict[str, Any]],
+                  label: Callable[[dict[str, Any]], str]) -> list[str]:
+    """A findings line per run that did not complete: its label, status and reason."""
+    return [f"- **{label(r)}**: {r.get('status')} ({r.get('reason', '')})." for r in records
+            if r.get("status") != "completed"]
+
+
 def run_table(records: list[dict[str, Any]], label: Callable[[dict[str, Any]], str],
               columns: Sequence[str], sort: Iterable[str] = ()) -> pd.DataFrame:
     """One row per run, completed or not (``status`` and ``reason`` among ``columns`` say

@@ -95,9 +95,7 @@ def _u(v: float) -> str:
 def findings(records: list[dict[str, Any]], unc: NumericalUncertainty) -> str:
     df = grid(an.completed(records))
     lines = []
-    for n, re in (sorted(set(zip(df["n"], df["reynolds"], strict=True))) if not df.empty
-                  else []):
-        g = df[(df["n"] == n) & (df["reynolds"] == re)]
+    for (n, re), g in (df.groupby(["n", "reynolds"]) if not df.empty else []):
         parts = [f"{r['laplacian']}{'' if not r['stabilization'] else ' stabilized'}"
                  f"{'' if r['gradient'] == 'pgm1' else ' ' + str(r['gradient'])} "
                  f"{float(r['rms_error']):.3f} U (u {float(r['u_rms_error']):.3f}, v "
@@ -112,9 +110,7 @@ def findings(records: list[dict[str, Any]], unc: NumericalUncertainty) -> str:
         lines.append(f"- **Numerical uncertainty** of the RMS error, {label(row)}: "
                      f"{u.text(_u)}; {u.detail(_u)}.  Unsteadiness (last two fifths) "
                      f"{_fmt(row['unsteadiness'])} U.")
-    for r in records:
-        if r.get("status") != "completed":
-            lines.append(f"- **{label(r)}**: {r.get('status')} ({r.get('reason', '')}).")
+    lines += an.not_completed(records, label)
     return "\n".join(lines) if lines else "No run completed."
 
 

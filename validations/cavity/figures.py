@@ -24,11 +24,9 @@ def figures(records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.
         return []
     df = df.assign(n=(SIDE / df["l0"]).round().astype(int))
     out: list[Path | None] = []
-    for n in sorted(df["n"].unique()):
-        for re in sorted(df["reynolds"].unique()):
-            g = df[(df["n"] == n) & (df["reynolds"] == re)]
-            if not g.empty:
-                out.append(_fig_profiles(g, arrays, outdir, int(n), int(re)))
+    for _, g in df.groupby(["n", "reynolds"]):
+        out.append(_fig_profiles(g, arrays, outdir, int(g["n"].iloc[0]),
+                                 int(g["reynolds"].iloc[0])))
     if unc is not None:
         out.append(pl.refinement_figure(
             [s for s in unc.sets if len(s.run_ids) > 1],

@@ -160,9 +160,7 @@ def findings(records: list[dict[str, Any]], unc: NumericalUncertainty) -> str:
             f"{100 * float(r['floor_pressure_error_off']):+.2f}% of rho0 g H, its fluctuation "
             f"{an.pct(r['pressure_fluctuation_on'])} / {an.pct(r['pressure_fluctuation_off'])}."
         )
-    bad = [r for r in records if r.get("status") != "completed"]
-    for r in bad:
-        lines.append(f"- **{_label(r)}**: {r.get('status')} ({r.get('reason', '')}).")
+    lines += an.not_completed(records, _label)
     rec = _recommended(df)
     for r in an.rows(rec):
         u = unc.of(r, "floor_pressure_error")

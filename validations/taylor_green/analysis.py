@@ -183,9 +183,7 @@ def findings(records: list[dict[str, Any]], unc: NumericalUncertainty) -> str:
             u = unc.of(row, metric)
             lines.append(f"- **Refinement in l0** of the velocity error at {frac:g} T, "
                          f"{label(row)}: {u.text(an.pct)}; {u.detail(an.pct)}.")
-    for r in records:
-        if r.get("status") != "completed":
-            lines.append(f"- **{label(r)}**: {r.get('status')} ({r.get('reason', '')}).")
+    lines += an.not_completed(records, label)
     return "\n".join(lines) if lines else "No run completed."
 
 

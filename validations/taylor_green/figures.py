@@ -23,11 +23,9 @@ def figures(records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.
         return []
     df = df.assign(n=(SIDE / df["l0"]).round().astype(int))
     out: list[Path | None] = []
-    for n in sorted(df["n"].unique()):
-        for re in sorted(df["reynolds"].unique()):
-            g = df[(df["n"] == n) & (df["reynolds"] == re)]
-            if not g.empty:
-                out.append(_fig_decay(g, arrays, outdir, int(n), float(re)))
+    for _, g in df.groupby(["n", "reynolds"]):
+        out.append(_fig_decay(g, arrays, outdir, int(g["n"].iloc[0]),
+                              float(g["reynolds"].iloc[0])))
     head = an.select(df[df["n"] == HEADLINE_N], **RECOMMENDED)
     if not head.empty:
         out.append(_fig_particles(head, arrays, outdir))
