@@ -107,6 +107,7 @@ def test_diffusion_rejects(field: str, value: Any, allowed: str) -> None:
         ("restitution", 2.0, r"\[0.0, 1.0\]"),
         ("alpha_s", 1.5, r"\[0.0, 1.0\]"),
         ("wall_velocity", "slip", r"one of 'prescribed', 'mirror'"),
+        ("stabilization_rate", "time", r"one of 'step', 'acoustic'"),
         ("collision", "on", r"True or False"),
         ("stabilization", 1, r"True or False"),
         ("stabilization_walls", None, r"True or False"),

@@ -123,6 +123,10 @@ class DiffusionPhysics:
             _fail("DiffusionPhysics", "field_name", self.field_name, "a non-empty string")
 
 
+STABILIZATION_RATES = ("step", "acoustic")
+"""What ``FlowPhysics.alpha_s`` is per: a time step, or an acoustic step (docs/method.md 5)."""
+
+
 @dataclass(frozen=True)
 class FlowPhysics:
     """WC-MPS flow (docs/method.md sections 4-5).
@@ -144,6 +148,9 @@ class FlowPhysics:
     stabilization: bool = False
     alpha_s: float = 0.01
     stabilization_walls: bool = True  # wall and dummy particles are neighbours in its sum
+    # "step": alpha_s per time step (the paper's form: its added viscosity grows as 1/dt);
+    # "acoustic": alpha_s per acoustic step cfl l0 / c0, whatever the scheme's step
+    stabilization_rate: Literal["step", "acoustic"] = "step"
     wall_velocity: Literal["prescribed", "mirror"] = "prescribed"
 
     kind = "flow"
@@ -161,8 +168,22 @@ class FlowPhysics:
         _in_range(o, "restitution", self.restitution, 0.0, 1.0)
         _in_range(o, "alpha_s", self.alpha_s, 0.0, 1.0)
         _choice(o, "wall_velocity", self.wall_velocity, ("prescribed", "mirror"))
+        _choice(o, "stabilization_rate", self.stabilization_rate, STABILIZATION_RATES)
         for flag in ("clip_negative_pressure", "collision", "stabilization", "stabilization_walls"):
             _boolean(o, flag, getattr(self, flag))
+
+    def stabilization_alpha(self, dt: float, l0: float, cfl: float) -> float:
+        """The stabilization coefficient of a step of ``dt`` [s] (docs/method.md section 5).
+
+        ``step``: ``alpha_s`` (each step smooths the velocities by the same fraction, so the
+        added viscosity is proportional to 1/dt); ``acoustic``: ``alpha_s dt c0 / (cfl l0)``,
+        alpha_s per acoustic step cfl l0 / c0: the damping per unit of time is that of a
+        WC-MPS run of the same problem at rest, whatever step the scheme takes (a
+        semi-implicit step is 10-20 times the acoustic one).
+        """
+        if self.stabilization_rate == "step":
+            return self.alpha_s
+        return self.alpha_s * dt * self.c0 / (cfl * l0)
 
 
 @dataclass(frozen=True)

@@ -177,6 +177,7 @@ class SchemeSolver(SolverBase):
         self.free_surface = np.zeros(self.p.n, dtype=bool)
         self.rho_lap = 0.0  # Gershgorin bound of the Laplacian's spectral radius [1/m^2]
         self.dt_limit = ""
+        self.stabilization_alpha = 0.0  # the last step's (FlowPhysics.stabilization_alpha)
         ph = problem.physics
         if isinstance(ph, DiffusionPhysics):
             if ph.field_name not in self.p.fields:
@@ -215,7 +216,9 @@ class SchemeSolver(SolverBase):
         # 6: stabilization at the r* geometry (velocities only), move
         stab = None
         if ph.stabilization:
-            stab = (STABILIZATION.prefactor(ph.alpha_s, self.l0, self.n0),
+            cfl = self.problem.time_stepping.cfl  # type: ignore[union-attr]
+            self.stabilization_alpha = ph.stabilization_alpha(dt, self.l0, cfl)
+            stab = (STABILIZATION.prefactor(self.stabilization_alpha, self.l0, self.n0),
                     ph.stabilization_walls)
         self._move(dt, stab)
         # 7: wrap, open boundaries
@@ -287,6 +290,7 @@ class SchemeSolver(SolverBase):
             "n0": self.n0,
             "free_surface": self.free_surface,
             "dt_limit": self.dt_limit,
+            "stabilization_alpha": self.stabilization_alpha,
         }
 
     def health(self, margin: float) -> Health:

@@ -31,7 +31,7 @@ import numpy as np
 from mpsbench.cases import Case, CaseCheck, CaseRun, Grid, Param, RefinementGrid
 from mpsbench.cases import analysis as an
 from mpsbench.cases.refinement import SPACE, Refinement
-from mpsbench.physics.config import FlowPhysics, Models, TimeStepping
+from mpsbench.physics.config import STABILIZATION_RATES, FlowPhysics, Models, TimeStepping
 from mpsbench.physics.particles import Box, Kind, Particles, block, tank
 from mpsbench.run.estimate import RunEstimate, flow_dt, pairs_for, steps_for
 from mpsbench.run.probes import Callback, LayerAverage
@@ -57,6 +57,9 @@ PARAMS = (
           maximum=0.05),
     Param("stabilization", True, "velocity stabilization (Xu & Jin 2016)", kind=bool),
     Param("alpha_s", 0.01, "stabilization coefficient", minimum=0.0, maximum=1.0),
+    Param("stabilization_rate", "step", "what alpha_s is per: step (each time step, the "
+          "paper's form) or acoustic (each acoustic step cfl l0 / c0: the damping of a WC-MPS "
+          "run whatever the scheme's step)", kind=str, choices=STABILIZATION_RATES),
     Param("height", 0.3, "column height", unit="m", minimum=0.05, maximum=2.0),
     Param("width", 0.2, "column (and tank) width", unit="m", minimum=0.05, maximum=2.0),
     Param("end_time", 1.0, "simulated time", unit="s", minimum=0.05, maximum=20.0),
@@ -65,7 +68,7 @@ PARAMS = (
     Param("cfl", 0.2, "dt = cfl l0 / (c0 + |u|max)", minimum=1e-3, maximum=1.0),
     Param("nu", 1e-6, "kinematic viscosity", unit="m^2/s", minimum=0.0, maximum=1e-2),
 )
-STAB_ONLY = ("alpha_s",)
+STAB_ONLY = ("alpha_s", "stabilization_rate")
 
 # The recommended configuration (metrics.RECOMMENDED, the dam break's IWC-MPS: xu-jin +
 # stabilization, WF2, PGM1, r_e = 2.1 l0) is the gated one; its floor-pressure error gets u_num
@@ -141,7 +144,8 @@ def build(params: dict[str, Any]) -> Problem:
     box = Box((-margin, -margin), (width + margin, height + WALL_HEADROOM + 0.5 * height))
     physics = FlowPhysics(rho0=RHO0, nu=params["nu"], gravity=(0.0, -G),
                           c0=params["c0_factor"] * hm.speed_scale(height),
-                          stabilization=params["stabilization"], alpha_s=params["alpha_s"])
+                          stabilization=params["stabilization"], alpha_s=params["alpha_s"],
+                          stabilization_rate=params["stabilization_rate"])
     models = Models(weight=params["weight"], laplacian=params["laplacian"],
                     gradient=params["gradient"], re_ratio=params["re_ratio"])
     return Problem(Particles.concat([column, walls]), box, l0, physics, models,
