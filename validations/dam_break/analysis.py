@@ -47,6 +47,7 @@ MODEL_COLUMNS = [
     "gradient",
     "stabilization",
     "stabilization_walls",
+    "stabilization_rate",
     "l0",
     "cfl",
 ]
@@ -66,6 +67,7 @@ DEFAULT_MODELS = {
     "re_ratio_laplacian": 0.0,
     "gate_delay": 0.0,
     "stabilization_walls": True,
+    "stabilization_rate": "step",
     "collision": False,
 }
 
@@ -86,6 +88,8 @@ def label(r: dict[str, Any]) -> str:
         parts.append(str(r.get("gradient")))
     if r.get("stabilization") and r.get("stabilization_walls") is False:
         parts.append("no-wall-stab")
+    if r.get("stabilization") and r.get("stabilization_rate") == "acoustic":
+        parts.append("acoustic-stab")
     if r.get("collision"):
         parts.append("collision")
     parts.append(f"l0={_num(r.get('l0')) * 1000:g}mm")

@@ -49,7 +49,7 @@ import numpy as np
 
 from mpsbench.cases import Case, CaseCheck, CaseRun, Grid, Param, RefinementGrid
 from mpsbench.cases.refinement import SPACE, TIME, Refinement
-from mpsbench.physics.config import FlowPhysics, Models, TimeStepping
+from mpsbench.physics.config import STABILIZATION_RATES, FlowPhysics, Models, TimeStepping
 from mpsbench.physics.gradients import GRADIENTS
 from mpsbench.physics.laplacians import LAPLACIANS
 from mpsbench.physics.particles import Box, Kind, Particles, block, tank
@@ -152,6 +152,9 @@ PARAMS = (
         kind=bool,
     ),
     Param("alpha_s", 0.01, "stabilization coefficient", minimum=0.0, maximum=1.0),
+    Param("stabilization_rate", "step", "what alpha_s is per: step (each time step, the "
+          "paper's form) or acoustic (each acoustic step cfl l0 / c0: WC-MPS's damping for a "
+          "semi-implicit backend's longer steps)", kind=str, choices=STABILIZATION_RATES),
     Param("collision", False, "collision correction (Lee et al. 2011)", kind=bool),
     Param("c0_factor", 10.0, "sound speed c0 = factor * sqrt(2 g H)", minimum=1.0),
     Param("cfl", 0.2, "dt = cfl l0 / (c0 + |u|max)", minimum=1e-3, maximum=1.0),
@@ -205,7 +208,7 @@ LOB_ONLY = (
     "peak_filter",
     "noise_window",
 )
-STAB_ONLY = ("stabilization_walls", "alpha_s")
+STAB_ONLY = ("stabilization_walls", "alpha_s", "stabilization_rate")
 
 KO, LOB = "koshizuka-oka", "lobovsky"
 TIERS: dict[str, list[Grid]] = {
@@ -342,6 +345,7 @@ def build(params: dict[str, Any]) -> tuple[Problem, dict[str, float]]:
         stabilization=params["stabilization"],
         alpha_s=params["alpha_s"],
         stabilization_walls=params["stabilization_walls"],
+        stabilization_rate=params["stabilization_rate"],
     )
     rel = params["re_ratio_laplacian"] or None
     models = Models(
