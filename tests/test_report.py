@@ -126,3 +126,41 @@ def test_the_solver_table_gives_the_time_to_solution_against_the_first_solver() 
     assert ratio.loc[5e-5] == 1.5
     assert ratio.isna().loc[2.5e-5]
     assert table.loc[5e-5, "wall_time_s [numba]"] == 2.0
+
+
+def test_the_solver_table_leaves_out_empty_and_shared_columns() -> None:
+    """A metric no solver reported has no column; one all solvers report alike in every row
+    (a set-up value) has one plain column; results keep a column per solver."""
+    from mpsbench.results.sections import solver_table
+
+    case = CASES.get("couette")
+    records = [
+        {"case": "couette", "l0": l0, "solver": s, "status": "completed", "wall_time_s": w,
+         "l2_error": e, "l2_error_steady": None}
+        for l0, s, w, e in [(5e-5, "numba", 2.0, 0.01), (5e-5, "implicit", 3.0, 0.02),
+                            (2.5e-5, "numba", 4.0, 0.005), (2.5e-5, "implicit", 6.0, 0.007)]
+    ]
+    case_metrics = set(case.metrics)
+    assert {"l2_error", "l2_error_steady"} <= case_metrics
+    shared = next(m for m in case.metrics if m not in ("l2_error", "l2_error_steady"))
+    for r in records:
+        r[shared] = 0.25
+    table = solver_table(case, records)
+    assert "l2_error [numba]" in table and "l2_error [implicit]" in table
+    assert not any(c.startswith("l2_error_steady") for c in table.columns)
+    assert shared in table and f"{shared} [numba]" not in table
+    assert table["time to solution [implicit / numba]"].tolist() == [1.5, 1.5]
+
+
+def test_report_keeps_the_command_lines_solver_order(toys: Toys, tmp_path: Path) -> None:
+    """The runs are stored in file-name order (implicit before reference); the re-render takes
+    the solvers in the order of the command line, as validate did: the first is the one the
+    time to solution is relative to."""
+    out = tmp_path / "two"
+    assert cli.main(["validate", "toy-diffusion", "--tier", "smoke", "--solver", "reference",
+                     "--solver", "implicit", "--out", str(out), "--quiet"]) == 0
+    ratio = "time to solution [implicit / reference]"
+    assert ratio in (out / "summary.md").read_text()
+    (out / "summary.md").unlink()
+    assert cli.main(["report", str(out)]) == 0
+    assert ratio in (out / "summary.md").read_text()

@@ -63,6 +63,7 @@ def _report(args: argparse.Namespace, out: Path) -> int:
         CaseSection,
         case_from_disk,
         claim_counts,
+        in_solver_order,
         safe_render_case,
         verdict,
     )
@@ -77,6 +78,7 @@ def _report(args: argparse.Namespace, out: Path) -> int:
     params: list[str] = []
     to_render: list[tuple[str, Case, Path, list[dict[str, Any]]]] = []
     for name, folder, records in found:  # read every stored file before writing any
+        records = in_solver_order(records, manifest.get("solvers"))
         case: Case | None = None
         why = "--from-files"
         if not args.from_files:

@@ -71,6 +71,16 @@ def solver_order(records: list[dict[str, Any]]) -> list[str]:
     return list(dict.fromkeys(solver_label(r) for r in records))
 
 
+def in_solver_order(records: list[dict[str, Any]], solvers: Any) -> list[dict[str, Any]]:
+    """``records`` with the solvers in the order given (a manifest's ``solvers``, the command
+    line's order; stable, unknown specs last): the stored files are read in name order, and the
+    first solver is the one the others' time to solution is relative to."""
+    if not isinstance(solvers, list) or not solvers:
+        return records
+    rank = {str(spec): k for k, spec in enumerate(solvers)}
+    return sorted(records, key=lambda r: rank.get(solver_label(r), len(rank)))
+
+
 def by_spec(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """The records as the case's tables and figures see them: ``solver`` holds the whole spec,
     so runs of one backend with different options are told apart (the records themselves keep
@@ -123,6 +133,28 @@ def _cross_code(section: CaseSection, case: Case, records: list[dict[str, Any]],
                       f"{md_escape(section.cross_code_caption)}\n\n{markdown_table(table)}")
 
 
+def _compact(wide: pd.DataFrame, metrics: list[str], solvers: list[str]) -> pd.DataFrame:
+    """Columns ``metric [solver]``, without the metrics no solver reported in any row (the
+    Lobovsky sensors of a Koshizuka-Oka-only study), and with one plain ``metric`` column for
+    a metric every solver reports the same in every row (a set-up value such as the column
+    width or the sampling interval, not a result to compare).  Solvers in ``solvers`` order."""
+    out: dict[str, pd.Series] = {}
+    for m in metrics:
+        rank = {name: k for k, name in enumerate(solvers)}
+        cols = sorted((c for c in wide.columns if c[0] == m),
+                      key=lambda c: rank.get(c[1], len(rank)))
+        if not cols or all(wide[c].isna().all() for c in cols):
+            continue
+        first = wide[cols[0]]
+        cost = m in ("particle_steps_per_s", "wall_time_s")  # compared even when equal
+        if not cost and len(cols) > 1 and all(wide[c].equals(first) for c in cols[1:]):
+            out[m] = first
+            continue
+        for c in cols:
+            out[f"{c[0]} [{c[1]}]"] = wide[c]
+    return pd.DataFrame(out, index=wide.index)
+
+
 def solver_table(case: Case, records: list[dict[str, Any]]) -> pd.DataFrame:
     """The case's metrics (and throughput, wall time) per parameter set, one column per solver,
     and the time to solution of each solver against the first: ``wall_time_s`` ratio (every
@@ -140,8 +172,8 @@ def solver_table(case: Case, records: list[dict[str, Any]]) -> pd.DataFrame:
     table = df.set_index([*key, "solver"])[metrics]
     table = table[~table.index.duplicated()]
     wide = pd.DataFrame(table.unstack("solver"))
-    wide.columns = pd.Index([f"{col[0]} [{col[1]}]" for col in wide.columns])
     solvers = solver_order(records)
+    wide = _compact(wide, metrics, solvers)
     if "wall_time_s" in metrics and "status" in df.columns and len(solvers) > 1:
         # a run that diverged or failed stopped early: its wall time is no time to solution
         status = df.set_index([*key, "solver"])["status"]
