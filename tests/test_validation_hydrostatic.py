@@ -165,3 +165,22 @@ def test_smoke_tier_end_to_end(tmp_path: Path) -> None:
     figures = {p.name for p in (out / "figures").glob("*.png")}
     assert {"motion_l0-0.03.png", "pressure_l0-0.03.png"} <= figures
     assert (out / "tables" / "rest_and_melting.csv").exists()
+
+
+def test_figure_names_tell_the_solvers_and_the_stabilization_rates_apart() -> None:
+    """Two solvers x two stabilization rates of one model: four distinct legend names and
+    line styles (they were four copies of 'xu-jin / pgm1, stabilized')."""
+    from mpsbench.validations.hydrostatic.figures import _Labels
+
+    rows = [{"laplacian": "xu-jin", "gradient": "pgm1", "stabilization": True, "solver": s,
+             "stabilization_rate": rate, "cfl": 0.2}
+            for s in ("numba", "implicit:source=mixed") for rate in ("step", "acoustic")]
+    g = pd.DataFrame(rows)
+    lab = _Labels(g)
+    names = [lab.name(r) for _, r in g.iterrows()]
+    assert len(set(names)) == 4
+    assert "implicit:source=mixed, alpha_s per acoustic step" in names[3]
+    assert len({lab.style(r)["lw"] for _, r in g.iterrows()}) == 4
+    # one solver, one rate: the plain name
+    single = _Labels(g.iloc[:1])
+    assert single.name(g.iloc[0]) == "xu-jin / pgm1, stabilized"
