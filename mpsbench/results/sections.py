@@ -135,9 +135,10 @@ def _cross_code(section: CaseSection, case: Case, records: list[dict[str, Any]],
 
 def _compact(wide: pd.DataFrame, metrics: list[str], solvers: list[str]) -> pd.DataFrame:
     """Columns ``metric [solver]``, without the metrics no solver reported in any row (the
-    Lobovsky sensors of a Koshizuka-Oka-only study), and with one plain ``metric`` column for
-    a metric every solver reports the same in every row (a set-up value such as the column
-    width or the sampling interval, not a result to compare).  Solvers in ``solvers`` order."""
+    Lobovsky sensors of a Koshizuka-Oka-only study), and with one ``metric [all solvers]``
+    column for a metric every solver reports the same in every row (a set-up value such as the
+    column width or the sampling interval; or a result two backends agree on to the last bit,
+    which the column's name then says).  Solvers in ``solvers`` order."""
     out: dict[str, pd.Series] = {}
     for m in metrics:
         rank = {name: k for k, name in enumerate(solvers)}
@@ -148,7 +149,7 @@ def _compact(wide: pd.DataFrame, metrics: list[str], solvers: list[str]) -> pd.D
         first = wide[cols[0]]
         cost = m in ("particle_steps_per_s", "wall_time_s")  # compared even when equal
         if not cost and len(cols) > 1 and all(wide[c].equals(first) for c in cols[1:]):
-            out[m] = first
+            out[f"{m} [all solvers]"] = first
             continue
         for c in cols:
             out[f"{c[0]} [{c[1]}]"] = wide[c]
