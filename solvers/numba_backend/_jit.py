@@ -43,18 +43,32 @@ from numba.core.dispatcher import Dispatcher
 _CACHE_VERSION = "mpsbench-kernels-2"
 
 FLAGS: dict[str, Any] = {
-    "fastmath": {"arcp", "contract", "reassoc", "nsz"},
+    "fastmath": {"arcp", "contract", "nsz"},
     "error_model": "numpy",
 }
-"""The floating-point contract of every kernel.  ``reassoc`` lets a neighbour sum be split into
-vector lanes (the inner loops vectorise: 1.3-1.6x on the pair kernels, measured at 40k
-particles), ``contract`` fuses multiply-adds, ``arcp`` turns a division by a loop invariant
-(``r / re``) into a multiplication by its reciprocal; ``error_model="numpy"`` drops the
-zero-division checks that keep a loop scalar (a coincident pair's 1/r is inf, and the closed
-support selects 0.0 for it).  NaN and inf keep their meaning (no ``nnan``/``ninf``): the
-health checks, the free-surface test and the rebuild test rely on them.  Results differ from
-strict IEEE order in the last bits; the serial and the parallel build of a kernel compile the
-same loop and agree bit for bit (tests/test_numba_agreement.py holds 1 against 2 threads).
+"""The floating-point contract of every model kernel: ``contract`` fuses multiply-adds,
+``arcp`` turns a division by a loop invariant (``r / re``) into a multiplication by its
+reciprocal; ``error_model="numpy"`` drops the zero-division checks that keep a loop scalar (a
+coincident pair's 1/r is inf, and the closed support selects 0.0 for it).  NaN and inf keep
+their meaning (no ``nnan``/``ninf``): the health checks, the free-surface test and the rebuild
+test rely on them.  Results differ from strict IEEE order in the last bits; the serial and the
+parallel build of a kernel compile the same loop and agree bit for bit
+(tests/test_numba_agreement.py holds 1 against 2 threads).
+
+Without ``reassoc`` a neighbour sum keeps its order, so its loop stays scalar: each neighbour's
+coordinates are two plain loads.  :data:`VECTOR_FLAGS` adds ``reassoc`` (the solver option
+``vectorize``): LLVM then splits the sums into vector lanes and loads the neighbours with
+gather instructions.  Whether that pays depends on the processor's gathers: on this project's
+machine of 2026-12-07 (Xeon, 2.8 GHz, AVX-512) the vector number-density loop costs 7.6 ns per
+list entry against 3.2 ns for the scalar one (``docs/performance.md``); an earlier machine
+measured the vector loops 1.3-1.6x faster.  ``mpsbench bench --solver numba --solver
+numba:vectorize=true`` measures it on yours."""
+
+VECTOR_FLAGS: dict[str, Any] = {
+    "fastmath": FLAGS["fastmath"] | {"reassoc"},
+    "error_model": "numpy",
+}
+""":data:`FLAGS` with ``reassoc``: the model kernels' neighbour sums vectorise (gathers).
 
 Only the model kernels (:func:`factory`) take these flags.  The neighbour-list build, the
 geometry and the other helpers (:func:`kernel`, :func:`compiled` used directly) compile with
@@ -64,10 +78,11 @@ reference's pair search, and a separation is the same bits as ``Box.minimum_imag
 STRICT: dict[str, Any] = {"error_model": "numpy"}
 
 
-def kernel(fn: Any, fast: bool = False) -> Any:
+def kernel(fn: Any, fast: bool = False, vector: bool = False) -> Any:
     """``njit(parallel=True)(fn)``, disk-cached, with a serial build as ``.serial``; compiled
-    with :data:`FLAGS` when ``fast``, else :data:`STRICT`."""
-    flags = FLAGS if fast else STRICT
+    with :data:`FLAGS` when ``fast`` (:data:`VECTOR_FLAGS` when ``vector`` too), else
+    :data:`STRICT`."""
+    flags = (VECTOR_FLAGS if vector else FLAGS) if fast else STRICT
     parallel: Any = cached(njit(parallel=True, **flags)(fn))
     twin = types.FunctionType(
         fn.__code__, fn.__globals__, fn.__name__ + "_serial", fn.__defaults__, fn.__closure__
@@ -89,15 +104,32 @@ def pick(fn: Any, serial: bool) -> Any:
     return fn.serial if serial else fn
 
 
+_vector = False  # the flags factories build with now (:func:`vectorized`)
+
+
+@contextmanager
+def vectorized(on: bool) -> Iterator[None]:
+    """Inside the block, :func:`factory` kernels are the builds with :data:`VECTOR_FLAGS`
+    (``on``) or :data:`FLAGS`; the caller's setting is restored after it."""
+    global _vector
+    before, _vector = _vector, bool(on)
+    try:
+        yield
+    finally:
+        _vector = before
+
+
 def factory(build: Callable[..., Any]) -> Callable[..., Any]:
     """A memoised kernel factory: ``build(*models)`` returns the Python function of a kernel
-    (closing over compiled formulas); the result is ``kernel(...)`` of it, once per arguments."""
+    (closing over compiled formulas); the result is ``kernel(...)`` of it, once per arguments
+    and flag set (:func:`vectorized`)."""
     made: dict[tuple[Any, ...], Any] = {}
 
     def get(*models: Any) -> Any:
-        if models not in made:
-            made[models] = kernel(build(*models), fast=True)
-        return made[models]
+        key = (*models, _vector)
+        if key not in made:
+            made[key] = kernel(build(*models), fast=True, vector=_vector)
+        return made[key]
 
     get.__name__ = build.__name__
     get.__qualname__ = build.__qualname__

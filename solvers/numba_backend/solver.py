@@ -48,7 +48,7 @@ from mpsbench.run.protocol import Capabilities, Health, Problem
 from mpsbench.run.scheme import SCHEME_BOUNDARIES, EquationOfState, SchemeSolver
 
 from . import formulas, fused, kernels, steps
-from ._jit import report, watch_compiles
+from ._jit import report, vectorized, watch_compiles
 from .cells import CSRNeighbours, build_csr
 from .geometry import box_period
 from .layout import Birth, morton_order
@@ -91,6 +91,9 @@ class NumbaSolver(SchemeSolver):
         Option("sort", False, "flow: sort the particles along a space-filling curve at each "
                "neighbour rebuild (memory locality); false: keep the problem's order",
                kind=bool),
+        Option("vectorize", False, "compile the neighbour sums with reassoc, so LLVM "
+               "vectorises them with gather loads (faster or slower by processor: measure "
+               "with mpsbench bench); false: scalar loops", kind=bool),
     )
     parallel_min = 8_000
     """With ``threads=0``, problems with fewer particles run on one thread: a parallel region
@@ -99,7 +102,8 @@ class NumbaSolver(SchemeSolver):
     time slice for a descheduled thread.  Inside a worker process of a pool (a study run with
     ``--jobs`` > 1) every problem runs on one thread: the pool already uses the cores."""
 
-    def __init__(self, threads: int | None = 0, sort: bool = False) -> None:
+    def __init__(self, threads: int | None = 0, sort: bool = False,
+                 vectorize: bool = False) -> None:
         super().__init__()
         if threads is not None and (
             not isinstance(threads, int) or isinstance(threads, bool) or threads < 0
@@ -108,10 +112,17 @@ class NumbaSolver(SchemeSolver):
                              "(0: automatic)")
         self.requested_threads = threads or None
         self.sort = bool(sort)
+        self.vectorize = bool(vectorize)
         self.threads = 1
         self.timings: dict[str, float] = {}
         self._watched: list[Any] = []
         self.compile_times: dict[str, float] = {}  # kernel -> seconds compiling (cache misses)
+
+    @contextmanager
+    def _compiled(self) -> Iterator[None]:
+        """This run's numba threads and kernel flags (:func:`._jit.vectorized`)."""
+        with _threads(self.threads), vectorized(self.vectorize):
+            yield
 
     def _k(self, fn: Any) -> Any:
         """The build of a compiled kernel for this run: serial on one thread (:mod:`._jit`)."""
@@ -128,17 +139,17 @@ class NumbaSolver(SchemeSolver):
     def setup(self, problem: Problem) -> None:
         self.threads = self._choose_threads(problem.particles.n)
         t0 = time.perf_counter()
-        with _threads(self.threads), watch_compiles() as watch:
+        with self._compiled(), watch_compiles() as watch:
             super().setup(problem)
         self.timings["setup_s"] = time.perf_counter() - t0
         self._watched = [watch]  # the first step compiles the step's kernels: watched too
 
     def step(self, dt: float) -> None:
         if not self._watched:
-            with _threads(self.threads):
+            with self._compiled():
                 super().step(dt)
             return
-        with _threads(self.threads), watch_compiles() as watch:
+        with self._compiled(), watch_compiles() as watch:
             super().step(dt)
         self._watched.append(watch)
         kernels = sum(w.kernels for w in self._watched)
@@ -331,7 +342,7 @@ class NumbaSolver(SchemeSolver):
         this)."""
         if self.problem is None or isinstance(self.problem.physics, DiffusionPhysics):
             return
-        with _threads(self.threads):
+        with self._compiled():
             self._rebuild()
 
     def _lists(self) -> tuple[tuple[Any, Any], tuple[Any, Any]]:
