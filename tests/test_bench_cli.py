@@ -132,6 +132,17 @@ def test_bench_table(capsys: pytest.CaptureFixture[str]) -> None:
     assert "1.00x [1.00-1.00]" in lines[0] and "speed-up" in out
 
 
+def test_bench_table_columns_line_up_with_long_specs(capsys: pytest.CaptureFixture[str]) -> None:
+    long = "numba:threads=1,vectorize=true"
+    assert main(["bench", "--solver", "numba:threads=1", "--solver", long, "--n", "1000",
+                 "--steps", "2", "--repeat", "2"]) == 0
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("numba")]
+    assert len(lines) == 2
+    # the particle count starts in the same column on both lines
+    cols = {ln.index(" 1", len(ln.split()[0])) for ln in lines}
+    assert len(cols) == 1, lines
+
+
 def test_save_then_compare(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     storage = tmp_path / "hist"
     args = ["bench", "--solver", "reference", "--n", "1000", "--steps", "2", "--repeat", "3",

@@ -384,9 +384,11 @@ def run_bench(
 
 
 def format_table(records: Sequence[BenchRecord]) -> str:
-    """A plain-text table: one line per contender and size."""
+    """A plain-text table: one line per contender and size (the solver column as wide as the
+    longest spec, so options do not push the columns out of line)."""
+    w = max([16, *(len(r.solver) for r in records)])
     head = (
-        f"{'solver':<16} {'n':>7} {'thr':>3} {'rounds':>6} {'Mpart-steps/s [q1-q3]':>23} "
+        f"{'solver':<{w}} {'n':>7} {'thr':>3} {'rounds':>6} {'Mpart-steps/s [q1-q3]':>23} "
         f"{'speed-up [min-max]':>19} {'to t':>6} {'per CPU-s':>9} {'step ms':>8} "
         f"{'rebuild ms':>10} {'JIT s':>6} {'load':>9}"
     )
@@ -397,7 +399,7 @@ def format_table(records: Sequence[BenchRecord]) -> str:
         speed = f"{r.speedup_vs_first:.2f}x [{r.speedup_min:.2f}-{r.speedup_max:.2f}]"
         rebuild = "-" if r.rebuild_ms is None else f"{r.rebuild_ms:.1f}"
         lines.append(
-            f"{r.solver:<16} {r.n:>7} {r.threads:>3} {r.rounds:>6} {rate:>23} {speed:>19} "
+            f"{r.solver:<{w}} {r.n:>7} {r.threads:>3} {r.rounds:>6} {rate:>23} {speed:>19} "
             f"{r.time_to_solution_speedup:>5.2f}x {r.particle_steps_per_cpu_s / 1e6:>9.3f} "
             f"{r.step_ms:>8.2f} {rebuild:>10} {r.jit_compile_s:>6.2f} "
             f"{r.load_avg:>4.1f}-{r.load_avg_end:<4.1f}"
