@@ -128,11 +128,12 @@ def test_solvers_lists_each_backends_options(capsys: pytest.CaptureFixture[str])
     pytest.importorskip("numba")
     assert cli.main(["solvers", "--json"]) == 0
     rows = {r["name"]: r for r in json.loads(capsys.readouterr().out)}
-    assert [o["name"] for o in rows["numba"]["options"]] == ["threads", "sort"]
+    assert [o["name"] for o in rows["numba"]["options"]] == ["threads", "sort", "vectorize"]
     assert rows["reference"]["options"] == []
     assert cli.main(["solvers"]) == 0
     out = capsys.readouterr().out
     assert "options (--solver numba:key=value,...):" in out and "sort (default false" in out
+    assert "vectorize (default false" in out
 
 
 # --------------------------------------------------------------------------- health
