@@ -133,7 +133,7 @@ def test_solvers_lists_each_backends_options(capsys: pytest.CaptureFixture[str])
     assert cli.main(["solvers"]) == 0
     out = capsys.readouterr().out
     assert "options (--solver numba:key=value,...):" in out and "sort (default false" in out
-    assert "vectorize (default false" in out
+    assert "vectorize (default true" in out
 
 
 # --------------------------------------------------------------------------- health

@@ -56,13 +56,13 @@ parallel build of a kernel compile the same loop and agree bit for bit
 (tests/test_numba_agreement.py holds 1 against 2 threads).
 
 Without ``reassoc`` a neighbour sum keeps its order, so its loop stays scalar: each neighbour's
-coordinates are two plain loads.  :data:`VECTOR_FLAGS` adds ``reassoc`` (the solver option
-``vectorize``): LLVM then splits the sums into vector lanes and loads the neighbours with
-gather instructions.  Whether that pays depends on the processor's gathers: on this project's
-machine of 2026-12-07 (Xeon, 2.8 GHz, AVX-512) the vector number-density loop costs 7.6 ns per
-list entry against 3.2 ns for the scalar one (``docs/performance.md``); an earlier machine
-measured the vector loops 1.3-1.6x faster.  ``mpsbench bench --solver numba --solver
-numba:vectorize=true`` measures it on yours."""
+coordinates are two plain loads.  :data:`VECTOR_FLAGS` adds ``reassoc``: LLVM then splits the
+sums into vector lanes and loads the neighbours with gather instructions.  The solver builds
+with :data:`VECTOR_FLAGS` unless its option ``vectorize`` is false (:func:`vectorized`).
+Whether the vector loops pay depends on the processor's gathers: an earlier machine of this
+project measured them 1.3-1.6x faster, the machine of 2026-12-07 0.65-0.74x the scalar ones
+(docs/performance.md); ``mpsbench bench --solver numba --solver numba:vectorize=false``
+measures it on yours."""
 
 VECTOR_FLAGS: dict[str, Any] = {
     "fastmath": FLAGS["fastmath"] | {"reassoc"},
@@ -104,7 +104,7 @@ def pick(fn: Any, serial: bool) -> Any:
     return fn.serial if serial else fn
 
 
-_vector = False  # the flags factories build with now (:func:`vectorized`)
+_vector = False  # the flags factories build with now (:func:`vectorized`; the solver sets them)
 
 
 @contextmanager

@@ -91,9 +91,10 @@ class NumbaSolver(SchemeSolver):
         Option("sort", False, "flow: sort the particles along a space-filling curve at each "
                "neighbour rebuild (memory locality); false: keep the problem's order",
                kind=bool),
-        Option("vectorize", False, "compile the neighbour sums with reassoc, so LLVM "
-               "vectorises them with gather loads (faster or slower by processor: measure "
-               "with mpsbench bench); false: scalar loops", kind=bool),
+        Option("vectorize", True, "compile the neighbour sums with reassoc, so LLVM "
+               "vectorises them with gather loads; false: scalar loops (faster where gathers "
+               "are slow: 1.36-1.54x on this project's machine; measure with mpsbench "
+               "bench --solver numba --solver numba:vectorize=false)", kind=bool),
     )
     parallel_min = 8_000
     """With ``threads=0``, problems with fewer particles run on one thread: a parallel region
@@ -103,7 +104,7 @@ class NumbaSolver(SchemeSolver):
     ``--jobs`` > 1) every problem runs on one thread: the pool already uses the cores."""
 
     def __init__(self, threads: int | None = 0, sort: bool = False,
-                 vectorize: bool = False) -> None:
+                 vectorize: bool = True) -> None:
         super().__init__()
         if threads is not None and (
             not isinstance(threads, int) or isinstance(threads, bool) or threads < 0
