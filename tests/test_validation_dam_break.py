@@ -217,7 +217,11 @@ def test_quick_tier_has_the_gate_runs() -> None:
     ko = [p for p in quick if p["geometry"] == "koshizuka-oka"]
     assert any(p["variant"] == "iwc-mps" and p["l0"] <= 0.005 for p in ko)
     assert any(p["variant"] == "wc-mps" and p["l0"] <= 0.005 for p in ko)
-    assert {p["variant"] for p in quick if p["geometry"] == "lobovsky"} == {"wc-mps", "iwc-mps"}
+    lob = [p for p in quick if p["geometry"] == "lobovsky"]
+    assert {p["variant"] for p in lob} == {"wc-mps", "iwc-mps"}
+    # the gate needs every model run to complete: without the collision model a spray pair can
+    # end the Lobovsky runs on one CPU's rounding and not another's (case docstring)
+    assert all(p["collision"] for p in lob)
 
 
 @pytest.mark.parametrize("geometry, ratio", [("koshizuka-oka", 2.0), ("lobovsky", 0.5)])

@@ -23,13 +23,18 @@ Two geometries (``geometry``):
   particles and are not independent (said in the report); the 3 mm sensor is only resolved
   when l0 is a few mm.
 
-Known failure (Lobovsky, l0 = 5 mm, collision off, both variants): two spray particles that
+Known failure (Lobovsky, collision off; l0 = 5 mm, both variants, and IWC-MPS at l0 = 10 mm
+depending on the rounding of the build and CPU): two spray particles that
 approach each other while both are free-surface (p = 0, so PGM1 gives no repulsion) end up
 0.1 l0 apart; their number density then exceeds beta n0, both get the same Tait pressure
 (~2e5 Pa) and PGM1 still gives no force (p_j - pmin_i = 0) until a third, free-surface particle
 enters r_e: pmin_i drops to 0 and the pair is shot apart at ~35 m/s in one step; the runner
 reports the run as diverged.  The collision model (``collision=true``) keeps pairs apart and
-those runs complete, so the paper tier runs the Lobovsky geometry with it.
+those runs complete, so the quick and paper tiers run the Lobovsky geometry with it.  At
+l0 = 10 mm the same pair (0.115 l0 apart, n = 1.18 n0, p = 1.85e5 Pa, a third particle entering
+r_e at 2.07 l0) was shot apart at 29 m/s at t = 0.649 s on an AMD EPYC with the numba vector
+build, and at t = 0.696 s on an AVX-512 Xeon with its scalar build, while other builds completed
+the run: whether it happens is decided by the last bits, so no gate may rest on it.
 
 Nondimensionalisation uses the simulated column: a = nx l0, H = ny l0 with nx = round(L / l0) and
 ny = round(nx H / L), so the aspect ratio is exact (a = 0.146 m when l0 divides it; 0.145 m at
@@ -224,7 +229,10 @@ TIERS: dict[str, list[Grid]] = {
         # the dt refinement of the headline runs at l0 = 5 mm (docs/method.md section 9)
         RefinementGrid(geometry=[KO], variant=["wc-mps", "iwc-mps"], l0=[0.005], cfl=[0.1]),
         {"geometry": [KO], "variant": ["iwc-mps"], "stabilization_walls": [False], "l0": [0.005]},
-        {"geometry": [LOB], "variant": ["wc-mps", "iwc-mps"], "l0": [0.02, 0.01]},
+        # collision on, as in the paper tier: without it the IWC-MPS run at l0 = 10 mm meets the
+        # spray-pair failure (module docstring) on some CPUs and builds and not on others
+        {"geometry": [LOB], "variant": ["wc-mps", "iwc-mps"], "l0": [0.02, 0.01],
+         "collision": [True]},
     ],
     "paper": [
         {
