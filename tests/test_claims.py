@@ -162,10 +162,10 @@ def test_water_jet_c4_and_c5_on_pairs() -> None:
     assert got["C4"] == "refuted" and got["C5"] == "refuted"
 
 
-def lobovsky(variant: str, l0: float, noise: float) -> dict[str, Any]:
+def lobovsky(variant: str, l0: float, noise: float, collision: bool = True) -> dict[str, Any]:
     return {"geometry": "lobovsky", "variant": variant, "l0": l0, "cfl": 0.2, "weight": "wf2",
             "re_ratio": 2.1, "gradient": "pgm1", "re_ratio_laplacian": 0.0, "gate_delay": 0.0,
-            "stabilization_walls": True, "collision": False, "status": "completed",
+            "stabilization_walls": True, "collision": collision, "status": "completed",
             "run_id": f"{variant}-{l0}", **{f"noise_sensor{k}": noise for k in range(1, 5)}}
 
 
@@ -175,6 +175,9 @@ def test_dam_break_c7() -> None:
     weak = [lobovsky("wc-mps", 0.01, 1.0), lobovsky("iwc-mps", 0.01, 0.8)]
     assert dba._c7(weak).verdict == "refuted"
     assert dba._c7([lobovsky("wc-mps", 0.01, 1.0)]).verdict == "inconclusive"
+    # the Lobovsky geometry's own models include the collision model (the tiers run it so)
+    off = [lobovsky("wc-mps", 0.01, 1.0, False), lobovsky("iwc-mps", 0.01, 0.3, False)]
+    assert dba._c7(off).verdict == "inconclusive"
 
 
 # --------------------------------------------------------------------------- reports
