@@ -68,11 +68,7 @@ DEFAULT_MODELS = {
     "gate_delay": 0.0,
     "stabilization_walls": True,
     "stabilization_rate": "step",
-    "collision": False,
 }
-# what differs per geometry: the quick and paper tiers run the Lobovsky geometry with the
-# collision model (a close spray pair ends some runs without it: case docstring)
-GEOMETRY_MODELS: dict[str, dict[str, Any]] = {"lobovsky": {"collision": True}}
 
 _num = an.num
 _ok = an.is_completed
@@ -103,9 +99,10 @@ def label(r: dict[str, Any]) -> str:
 
 def is_default(r: dict[str, Any], variant: str | None = None) -> bool:
     """A run of a variant's own models (no variation of the weight, gradient, walls...), with
-    its geometry's settings (:data:`GEOMETRY_MODELS`)."""
+    the collision model as its geometry's tiers run it (``Geometry.collision``)."""
     ok = r.get("variant") in (("wc-mps", "iwc-mps") if variant is None else (variant,))
-    own = DEFAULT_MODELS | GEOMETRY_MODELS.get(str(r.get("geometry")), {})
+    geo = GEOMETRIES.get(str(r.get("geometry")))
+    own = DEFAULT_MODELS | {"collision": geo.collision if geo else False}
     return ok and all(r.get(k, v) == v for k, v in own.items())
 
 

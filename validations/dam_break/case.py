@@ -235,7 +235,7 @@ TIERS: dict[str, list[Grid]] = {
         # collision on, as in the paper tier: without it the IWC-MPS run at l0 = 10 mm meets the
         # spray-pair failure (module docstring) on some CPUs and builds and not on others
         {"geometry": [LOB], "variant": ["wc-mps", "iwc-mps"], "l0": [0.02, 0.01],
-         "collision": [True]},
+         "collision": [GEOMETRIES[LOB].collision]},
     ],
     "paper": [
         {
@@ -254,7 +254,7 @@ TIERS: dict[str, list[Grid]] = {
             "re_ratio": [2.1, 3.1],
             "l0": [0.01, 0.005],
             "gradient": ["pgm1", "pgm2", "pgm3"],
-            "collision": [True],
+            "collision": [GEOMETRIES[LOB].collision],
             "end_tstar": [7.0],
         },
     ],
