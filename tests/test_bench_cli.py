@@ -74,6 +74,35 @@ def test_rounds_interleave_and_the_cold_start_is_freed_first() -> None:
     assert made[0]() is None and made[2]() is None  # both cold instances are gone
 
 
+def test_block_steps_make_the_fastest_block_last_block_s() -> None:
+    assert bench.block_steps(2.5e-3) == 100  # numba at 10k: 0.25 s / 2.5 ms
+    assert bench.block_steps(0.1) == bench.DEFAULT_STEPS  # slow steps: never fewer than 20
+    assert bench.block_steps(1e-9) == bench.MAX_BLOCK_STEPS
+    assert bench.block_steps(0.0) == bench.MAX_BLOCK_STEPS  # a step below the clock's grain
+    assert bench.block_steps(bench.BLOCK_S / 37.5) == 38  # rounded up: at least BLOCK_S
+
+
+def test_blocks_are_sized_by_the_fastest_contenders_warm_up(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    log: list[tuple[str, str]] = []
+    made: list[Any] = []
+    seen: list[float] = []
+
+    def sized(step_s: float) -> int:
+        seen.append(step_s)
+        return 7
+
+    monkeypatch.setattr(bench, "block_steps", sized)
+    recs = run_size([toy("slow", log, made, work=400_000), toy("fast", log, made)], L0,
+                    repeat=2, warmup=2)
+    assert [r.steps for r in recs] == [7, 7]
+    timed = [label for label, what in log if what == "step"][-28:]
+    assert timed == (["slow"] * 7 + ["fast"] * 7) * 2
+    # the step time handed over is the fast toy's, well below the slow one's
+    per_step = [w / 7 for w in recs[0].block_wall_s]
+    assert len(seen) == 1 and seen[0] < 0.5 * min(per_step)
+
+
 def test_budget_sets_the_rounds_and_ratios_come_from_the_same_rounds() -> None:
     log: list[tuple[str, str]] = []
     made: list[Any] = []
@@ -267,6 +296,7 @@ def test_cli_defaults_are_the_bench_defaults() -> None:
     assert command.DEFAULT_SIZES == bench.DEFAULT_SIZES
     assert command.DEFAULT_BUDGET_S == bench.DEFAULT_BUDGET_S
     assert command.DEFAULT_STEPS == bench.DEFAULT_STEPS
+    assert command.BLOCK_S == bench.BLOCK_S
 
 
 def test_workload_size() -> None:

@@ -27,6 +27,7 @@ ORDER = 35
 DEFAULT_SIZES = (10_000, 40_000)  # = mpsbench.testing.bench.DEFAULT_SIZES (test_bench_cli checks)
 DEFAULT_BUDGET_S = 20.0  # = mpsbench.testing.bench.DEFAULT_BUDGET_S
 DEFAULT_STEPS = 20  # = mpsbench.testing.bench.DEFAULT_STEPS
+BLOCK_S = 0.25  # = mpsbench.testing.bench.BLOCK_S
 
 
 def register(sub: Any) -> None:
@@ -48,8 +49,10 @@ def register(sub: Any) -> None:
     p.add_argument("--n", action="append", type=int, default=None, metavar="N",
                    help="approximate particle count (repeatable; default: "
                    + ", ".join(str(n) for n in DEFAULT_SIZES) + ")")
-    p.add_argument("--steps", type=int, default=DEFAULT_STEPS,
-                   help=f"consecutive steps per block (default {DEFAULT_STEPS})")
+    p.add_argument("--steps", type=int, default=None,
+                   help="consecutive steps per block (default: per size, enough for the fastest "
+                   f"solver's block to last {BLOCK_S:g} s by its warm-up steps, at least "
+                   f"{DEFAULT_STEPS}; shorter blocks scatter more)")
     p.add_argument("--budget", type=float, default=DEFAULT_BUDGET_S, metavar="SECONDS",
                    help="repeat rounds until the timed blocks of a size have taken this long in "
                    f"all (at least 5 rounds; default {DEFAULT_BUDGET_S:g})")
@@ -116,7 +119,7 @@ def _check(args: argparse.Namespace) -> None:
         if n < MIN_N:
             raise UsageError(f"--n {n} is not allowed: an integer >= {MIN_N}")
         _check_memory(n)
-    if args.steps < 1:
+    if args.steps is not None and args.steps < 1:
         raise UsageError(f"--steps {args.steps} is not allowed: an integer >= 1")
     if not args.budget > 0:
         raise UsageError(f"--budget {args.budget} is not allowed: a number of seconds > 0")

@@ -15,8 +15,12 @@ How one size is timed (:func:`run_bench`), for the contenders ``A, B, ...`` in o
    ``jit_compile_s``), then ``warmup`` steps.  The warm instances of all contenders stay alive.
 3. *Rounds*: ``A B A B ...``: in each round every contender advances one block of ``steps``
    consecutive ``step(stable_dt())`` calls (neighbour rebuilds happen inside at their natural
-   rate), timed in wall and process CPU time.  Rounds repeat until ``repeat`` of them, or
-   until the blocks have taken ``budget`` seconds in all (and at least :data:`MIN_ROUNDS`).
+   rate), timed in wall and process CPU time.  Without ``steps`` a block is as many steps as
+   make the fastest contender's block last :data:`BLOCK_S` by its warm-up steps (at least
+   :data:`DEFAULT_STEPS`): a block of 20 steps lasts 50 ms for the numba backend at 10k
+   particles, and blocks that short scatter by 10-20 % even on a quiet 2-core machine, and so
+   did the per-round ratios (docs/performance.md).  Rounds repeat until ``repeat`` of them,
+   or until the blocks have taken ``budget`` seconds in all (and at least :data:`MIN_ROUNDS`).
    All contenders advance by the same number of steps, so they stay at the same stage of
    the same run.
 4. One neighbour rebuild timed alone per contender (best of 3).
@@ -65,7 +69,9 @@ SIZES = {"10k": 10_000, "40k": 40_000, "160k": 160_000}
 """The sizes of the pytest-benchmark suite (tests/benchmarks); ``mpsbench bench`` runs the
 first two by default (DEFAULT_SIZES)."""
 DEFAULT_SIZES = (SIZES["10k"], SIZES["40k"])
-DEFAULT_STEPS = 20  # steps per block
+DEFAULT_STEPS = 20  # steps per block: the least of a sized block, the pytest suite's block
+BLOCK_S = 0.25  # s: the least wall time of the fastest contender's block (steps not given)
+MAX_BLOCK_STEPS = 2000  # a contender faster than 0.125 ms per step gets no longer block
 DEFAULT_BUDGET_S = 20.0  # timed seconds per size, all contenders together
 WARMUP_STEPS = 3
 MIN_ROUNDS = 5  # below this a median and quartiles say little
@@ -251,14 +257,15 @@ def run_size(
     contenders: Sequence[Contender],
     l0: float,
     *,
-    steps: int = DEFAULT_STEPS,
+    steps: int | None = None,
     budget: float = DEFAULT_BUDGET_S,
     repeat: int | None = None,
     warmup: int = WARMUP_STEPS,
     progress: Callable[[str], None] | None = None,
 ) -> list[BenchRecord]:
-    """Time every contender at spacing ``l0`` (see the module docstring)."""
-    if not (isinstance(steps, int) and steps >= 1):
+    """Time every contender at spacing ``l0`` (see the module docstring); ``steps`` None:
+    blocks sized by :func:`block_steps` from the warm-up."""
+    if steps is not None and not (isinstance(steps, int) and steps >= 1):
         raise ValueError(f"steps = {steps!r} is not allowed: an integer >= 1")
     if repeat is not None and not (isinstance(repeat, int) and repeat >= 1):
         raise ValueError(f"repeat = {repeat!r} is not allowed: an integer >= 1")
@@ -270,6 +277,7 @@ def run_size(
     n_fluid = int(np.count_nonzero(problem.particles.kind == Kind.FLUID))
     load = _load()
     live: list[_Live] = []
+    warm_steps: list[float] = []  # s per warm-up step, the fastest contender's sizes the blocks
     with np.errstate(all="raise", under="ignore"):
         for c in contenders:
             say(f"{c.label} at n = {n}: cold start")
@@ -277,10 +285,16 @@ def run_size(
             del cold
             gc.collect()  # the cold instance is gone before anything is timed
             warm_setup, warm_step, s = _start(c, problem)
+            each = [warm_step]
             for _ in range(warmup):
+                t = time.perf_counter()
                 s.step(s.stable_dt())
+                each.append(time.perf_counter() - t)
+            warm_steps.append(float(np.median(each)))  # a step that rebuilt does not set it
             jit = max(0.0, (cold_setup + cold_step) - (warm_setup + warm_step))
             live.append(_Live(c, s, warm_setup, cold_step, jit))
+        if steps is None:
+            steps = block_steps(min(warm_steps))
         say(f"n = {n}: rounds of {steps} steps, "
             + (f"{repeat} rounds" if repeat else f"budget {budget:g} s"))
         rounds = 0
@@ -298,6 +312,15 @@ def run_size(
         records = [_record(x, n, n_fluid, steps, rounds, load, l0) for x in live]
     _ratios(records, live)
     return records
+
+
+def block_steps(step_s: float) -> int:
+    """Steps per block for a fastest contender taking ``step_s`` s per step: its block lasts at
+    least :data:`BLOCK_S`, and no block is shorter than :data:`DEFAULT_STEPS` steps or longer
+    than :data:`MAX_BLOCK_STEPS`."""
+    if not step_s > 0:  # a clock too coarse for the step: the longest block
+        return MAX_BLOCK_STEPS
+    return int(min(MAX_BLOCK_STEPS, max(DEFAULT_STEPS, math.ceil(BLOCK_S / step_s))))
 
 
 def _record(x: _Live, n: int, n_fluid: int, steps: int, rounds: int, load: float,
@@ -367,12 +390,13 @@ def run_bench(
     contenders: Sequence[Contender | str],
     sizes: Sequence[int],
     *,
-    steps: int = DEFAULT_STEPS,
+    steps: int | None = None,
     budget: float = DEFAULT_BUDGET_S,
     repeat: int | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> list[BenchRecord]:
-    """Every contender at every size; ratios are to the first contender (a name is a solver)."""
+    """Every contender at every size; ratios are to the first contender (a name is a solver);
+    ``steps`` None: blocks sized per size (:func:`block_steps`)."""
     entries = [c if isinstance(c, Contender) else solver_contender(c) for c in contenders]
     if not entries:
         raise ValueError("run_bench: no contender")
