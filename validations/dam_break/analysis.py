@@ -97,12 +97,18 @@ def label(r: dict[str, Any]) -> str:
     return " ".join(parts)
 
 
+def own_models(geometry: Any) -> dict[str, Any]:
+    """The settings of the variants' own models in ``geometry``: :data:`DEFAULT_MODELS` and the
+    collision model as that geometry's tiers run it (``Geometry.collision``)."""
+    geo = GEOMETRIES.get(str(geometry))
+    return DEFAULT_MODELS | {"collision": geo.collision if geo else False}
+
+
 def is_default(r: dict[str, Any], variant: str | None = None) -> bool:
-    """A run of a variant's own models (no variation of the weight, gradient, walls...), with
-    the collision model as its geometry's tiers run it (``Geometry.collision``)."""
+    """A run of a variant's own models (no variation of the weight, gradient, walls...) in its
+    geometry (:func:`own_models`)."""
     ok = r.get("variant") in (("wc-mps", "iwc-mps") if variant is None else (variant,))
-    geo = GEOMETRIES.get(str(r.get("geometry")))
-    own = DEFAULT_MODELS | {"collision": geo.collision if geo else False}
+    own = own_models(r.get("geometry"))
     return ok and all(r.get(k, v) == v for k, v in own.items())
 
 

@@ -11,21 +11,12 @@ from typing import Any
 import numpy as np
 
 from .. import experiments
-from .analysis import KO, LOB, _num, _ok, label
-
-DEFAULT_MODELS = {
-    "weight": "wf2",
-    "re_ratio": 2.1,
-    "gradient": "pgm1",
-    "re_ratio_laplacian": 0.0,
-    "gate_delay": 0.0,
-    "stabilization_walls": True,
-    "cfl": 0.2,
-}
+from .analysis import DEFAULT_CFL, KO, LOB, _num, _ok, label, own_models
 
 
 def _pick(records: list[dict[str, Any]], geometry: str, variant: str) -> dict[str, Any] | None:
-    """The finest completed run of a variant, preferring the default models."""
+    """The finest completed run of a variant, preferring its own models in the geometry and
+    the default cfl (fewest settings off them first)."""
     cands = [
         r
         for r in records
@@ -34,8 +25,10 @@ def _pick(records: list[dict[str, Any]], geometry: str, variant: str) -> dict[st
     if not cands:
         return None
 
+    own = own_models(geometry) | {"cfl": DEFAULT_CFL}
+
     def score(r: dict[str, Any]) -> tuple[int, float]:
-        misses = sum(r.get(k, v) != v for k, v in DEFAULT_MODELS.items())
+        misses = sum(r.get(k, v) != v for k, v in own.items())
         return misses, _num(r.get("l0"))
 
     return min(cands, key=score)
