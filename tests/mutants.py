@@ -38,7 +38,8 @@ class _ScaledLaplacian(LaplacianModel):
     def apply(self, *args: Any, coef: FloatArray | None = None, **kw: Any) -> FloatArray:
         if coef is None:
             return self.factor * self.inner.apply(*args, **kw)
-        return self.inner.apply(*args, coef=coef, **kw)
+        # coef by keyword through the dict: mypy cannot tell that *args does not fill it too
+        return self.inner.apply(*args, **{**kw, "coef": coef})
 
     def matrix(self, *args: Any, **kw: Any) -> sp.csr_matrix:
         return sp.csr_matrix(self.factor * self.inner.matrix(*args, **kw))
@@ -48,6 +49,7 @@ class LaplacianTimes11(ReferenceSolver):
     """(1) Laplacian coefficients x 1.1."""
 
     name = "mutant-laplacian-x1.1"
+    laplacian: LaplacianModel  # the base's, set up before _setup_diffusion/_setup_flow
 
     def _setup_diffusion(self, ph: DiffusionPhysics) -> tuple[float, FloatArray]:
         self.laplacian = _ScaledLaplacian(self.laplacian, 1.1)
@@ -149,6 +151,7 @@ class StabilizedSurface(ReferenceSolver):
     """(8) The stabilization applied to free-surface fluid particles too."""
 
     name = "mutant-stabilized-surface"
+    free_surface: NDArray[np.bool_]  # the base's, swapped out for the call
 
     def _stabilization(self, factor: float, with_walls: bool) -> FloatArray:
         saved = self.free_surface

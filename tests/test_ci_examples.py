@@ -54,7 +54,8 @@ CASE.fail_check = os.environ.get("TOY_FAIL_CHECK") == "1"
 '''
 
 
-def load(path: Path) -> dict[str, Any]:
+def load(path: Path) -> dict[Any, Any]:
+    """A YAML document's mapping (keys not only strings: YAML 1.1 reads a bare ``on`` as True)."""
     doc = yaml.safe_load(path.read_text())
     assert isinstance(doc, dict), path
     return doc
@@ -205,7 +206,8 @@ def check_outputs(out: Path, suites: set[str]) -> dict[str, Any]:
 
 def test_github_workflow_steps_run_locally(tmp_path: Path) -> None:
     doc = load(GITHUB)
-    assert set(doc.get("on", doc.get(True))) == {"push", "pull_request"}  # YAML 1.1: on = True
+    triggers = doc.get("on", doc.get(True))  # YAML 1.1: on = True
+    assert triggers is not None and set(triggers) == {"push", "pull_request"}
     (job,) = doc["jobs"].values()
     uses = [s["uses"].split("@")[0] for s in job["steps"] if "uses" in s]
     assert uses == ["actions/checkout", "actions/setup-python", "actions/upload-artifact"]

@@ -83,7 +83,9 @@ def assert_schema_structure(path: Path) -> None:
                   "skipped": sum(c.find("skipped") is not None for c in cases)}
         assert {k: int(suite.get(k, -1)) for k in counts} == counts, suite.get("name")
         for case in cases:
-            assert case.get("name") and case.get("classname") and float(case.get("time")) >= 0
+            time = case.get("time")
+            assert case.get("name") and case.get("classname") and time is not None
+            assert float(time) >= 0
             results = [e.tag for e in case if e.tag in ("failure", "error", "skipped")]
             assert len(results) <= 1
             for e in case:
@@ -135,8 +137,9 @@ def test_validate_junit_xml_maps_runs_checks_and_unavailable_cases(
     assert "tier = 'smoke' is not allowed" in broken.result[0].message
 
     root = ET.parse(junit).getroot()
-    props = {p.get("name"): p.get("value")
-             for p in root.find("testsuite[@name='shaky[reference]']/properties")}
+    properties = root.find("testsuite[@name='shaky[reference]']/properties")
+    assert properties is not None
+    props = {p.get("name"): p.get("value") for p in properties}
     assert props["case"] == "shaky" and props["solver"] == "reference"
     assert props["tier"] == "smoke" and props["mpsbench_version"]
 

@@ -73,7 +73,9 @@ def test_models_gradient_correction_only_with_xu_jin() -> None:
 
 
 def test_models_accepts_numpy_numbers() -> None:
-    assert Models(re_ratio=np.float64(3.1), re_ratio_laplacian=np.int64(4)).re_lap_ratio == 4
+    # Any: deliberately not the annotated float, the checks accept numpy integers too
+    four: Any = np.int64(4)
+    assert Models(re_ratio=np.float64(3.1), re_ratio_laplacian=four).re_lap_ratio == 4
 
 
 @pytest.mark.parametrize(
@@ -119,7 +121,10 @@ def test_flow_physics_rejects(field: str, value: Any, allowed: str) -> None:
 
 
 def test_flow_physics_accepts() -> None:
-    ph = FlowPhysics(nu=0.0, gravity=[0, -9.81], stabilization=np.bool_(True), eos="linear")
+    # Any: deliberately not the annotated tuple and bool, the checks accept a list and numpy bool
+    gravity: Any = [0, -9.81]
+    stabilization: Any = np.bool_(True)
+    ph = FlowPhysics(nu=0.0, gravity=gravity, stabilization=stabilization, eos="linear")
     assert ph.kind == "flow" and DiffusionPhysics().kind == "diffusion"
 
 

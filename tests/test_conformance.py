@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 from mpsbench.solvers.reference import ReferenceSolver
+from numpy.typing import NDArray
 
 from mpsbench.cli import main
 from mpsbench.physics.config import DiffusionPhysics
@@ -101,6 +102,10 @@ class LeakySolver(ReferenceSolver):
     """Drops the last particle after the first step of a flow."""
 
     name = "leaky"
+    # the base's attributes, which this class reassigns
+    p: Particles
+    number_density: NDArray[np.float64]
+    free_surface: NDArray[np.bool_]
 
     def _advance(self, dt: float) -> None:
         super()._advance(dt)
@@ -183,7 +188,7 @@ class Crasher(ReferenceSolver):
 
 class WrongTypes(ReferenceSolver):
     name = ""
-    version = 1  # type: ignore[assignment]
+    version: Any = 1  # deliberately not a str: the kit must reject it
 
 
 @pytest.mark.parametrize(

@@ -114,7 +114,7 @@ except ImportError:  # the dask tests skip; the class below is then never used
     _PluginBase = object  # type: ignore[assignment,misc]
 
 
-class _ToyPlugin(_PluginBase):  # type: ignore[misc]
+class _ToyPlugin(_PluginBase):
     """A dask worker plugin registering the toy case on each worker."""
 
     name = "mpsbench-study-toy"

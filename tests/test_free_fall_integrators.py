@@ -11,7 +11,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mpsbench.run.protocol import Capabilities, Problem
+from mpsbench.physics.config import FlowPhysics
+from mpsbench.run.protocol import Capabilities, Health, Problem, Status
 from mpsbench.testing.physics_checks import check_free_fall
 
 OWN = Capabilities.own_kernels(physics=frozenset({"flow"}), boundaries=frozenset({"periodic"}))
@@ -19,13 +20,22 @@ OWN = Capabilities.own_kernels(physics=frozenset({"flow"}), boundaries=frozenset
 
 class Falling:
     """One explicit step under gravity alone: u1 = u0 + k g dt, r1 = r0 + dt (u0 + theta k g dt)
-    (+ ``jitter`` of g dt^2 on the first particle)."""
+    (+ ``jitter`` of g dt^2 on the first particle).  check_free_fall calls setup, step and
+    state; the rest of the Solver protocol is there for its type."""
+
+    name = "test-falling"
+    version = "1"
+    capabilities = OWN
+    time = 0.0
+    n_steps = 0
+    status = Status.READY
 
     def __init__(self, theta: float, k: float = 1.0, jitter: float = 0.0) -> None:
         self.theta, self.k, self.jitter = theta, k, jitter
 
     def setup(self, problem: Problem) -> None:
         self.p = problem.particles.copy()
+        assert isinstance(problem.physics, FlowPhysics)
         self.g = np.asarray(problem.physics.gravity, dtype=float)
 
     def step(self, dt: float) -> None:
@@ -36,6 +46,15 @@ class Falling:
 
     def state(self) -> Any:
         return self.p
+
+    def stable_dt(self) -> float:
+        raise NotImplementedError("check_free_fall steps with its own dt")
+
+    def health(self, margin: float) -> Health:
+        raise NotImplementedError("check_free_fall does not run the runner's health check")
+
+    def diagnostics(self) -> dict[str, Any]:
+        return {}
 
 
 @pytest.mark.parametrize("theta", [1.0, 0.5, 0.0])

@@ -374,6 +374,7 @@ def test_backward_euler_on_a_lattice_eigenmode(laplacian: str) -> None:
                                          kappa=0.01, dt=0.5)
     phi0 = problem.particles.fields["phi"].copy()
     s = make_solver("implicit:tol=1e-12")
+    assert isinstance(s, ImplicitSolver)
     s.setup(problem)
     mat = s.matrix  # L of the chosen model
     mu = -float(phi0 @ (mat @ phi0) / (phi0 @ phi0))

@@ -110,15 +110,15 @@ def test_new_weight_is_one_class_and_one_registration() -> None:
         name = "test-quadratic"
 
         @staticmethod
-        def w_inside(r, re):  # type: ignore[no-untyped-def]
+        def w_inside(r, re):
             return (1 - r / re) ** 2
 
         @staticmethod
-        def dw_inside(r, re):  # type: ignore[no-untyped-def]
+        def dw_inside(r, re):
             return -2 / re * (1 - r / re)
 
         @staticmethod
-        def d2w_inside(r, re):  # type: ignore[no-untyped-def]
+        def d2w_inside(r, re):
             return 2 / re**2
 
     WEIGHTS.register("test-quadratic", Quadratic(), origin="user")

@@ -13,12 +13,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from mpsbench.solvers.reference import ReferenceSolver
 
 from mpsbench.testing import check_solver
 from mpsbench.testing.agreement import compare_solvers
 from tests import mutants
 
-CAUGHT_BY_KIT: dict[type, set[str]] = {
+CAUGHT_BY_KIT: dict[type[ReferenceSolver], set[str]] = {
     mutants.LaplacianTimes11: {"check_laplacian_oracle_koshizuka-oka",
                                "check_laplacian_oracle_xu-jin", "check_stable_dt_rule"},
     mutants.Pgm1JPlus: {"check_gradient_oracle_pgm1", "check_hydrostatic"},
@@ -34,7 +35,7 @@ CAUGHT_BY_KIT: dict[type, set[str]] = {
 
 # the problems of ``--against reference`` that tell each mutant from the reference (a fixed
 # time step is given to both, so the two time-step bugs are invisible there by design)
-CAUGHT_BY_AGREEMENT: dict[type, set[str]] = {
+CAUGHT_BY_AGREEMENT: dict[type[ReferenceSolver], set[str]] = {
     mutants.LaplacianTimes11: {"column in tank, pgm1", "diffusion, jittered periodic"},
     mutants.Pgm1JPlus: {"column in tank, pgm1"},
     mutants.Pgm23Symmetric: {"column in tank, pgm2", "column in tank, pgm3"},
@@ -54,7 +55,7 @@ def test_the_tables_cover_all_nine() -> None:
 
 
 @pytest.mark.parametrize("mutant", mutants.MUTANTS, ids=lambda m: m.name)
-def test_the_kit_catches_the_mutant(mutant: type) -> None:
+def test_the_kit_catches_the_mutant(mutant: type[ReferenceSolver]) -> None:
     results = check_solver(mutant, on_fail="return")
     failed = {r.check for r in results if r.outcome == "fail"}
     missing = CAUGHT_BY_KIT[mutant] - failed
@@ -62,7 +63,7 @@ def test_the_kit_catches_the_mutant(mutant: type) -> None:
 
 
 @pytest.mark.parametrize("mutant", mutants.MUTANTS, ids=lambda m: m.name)
-def test_against_reference_tells_the_mutant_apart(mutant: type) -> None:
+def test_against_reference_tells_the_mutant_apart(mutant: type[ReferenceSolver]) -> None:
     diffs = {d.problem: d for d in compare_solvers(mutant, "reference")}
     differ = {name for name, d in diffs.items() if d.agrees() is False}
     want = CAUGHT_BY_AGREEMENT[mutant]
@@ -75,7 +76,7 @@ def test_against_reference_tells_the_mutant_apart(mutant: type) -> None:
 # records of those runs; the mutant stands in for the reference backend, as a bug shipped in a
 # backend would): case and the parameters that pick the runs out of the smoke plan.
 KO_SMOKE = {"geometry": "koshizuka-oka", "l0": 0.0146}
-CAUGHT_BY_SMOKE: dict[type, tuple[str, dict[str, object]]] = {
+CAUGHT_BY_SMOKE: dict[type[ReferenceSolver], tuple[str, dict[str, object]]] = {
     mutants.LaplacianTimes11: ("couette", {"l0": 5e-05, "laplacian": "xu-jin",
                                            "wall_velocity": "prescribed", "drift": 0.0}),
     mutants.Pgm1JPlus: ("dam-break", {**KO_SMOKE, "variant": "wc-mps", "gradient": "pgm1"}),
@@ -108,7 +109,8 @@ def _picks(params: dict[str, object], want: dict[str, object]) -> bool:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("mutant", mutants.MUTANTS, ids=lambda m: m.name)
-def test_smoke_and_compare_catch_every_mutant(mutant: type, tmp_path: Path) -> None:
+def test_smoke_and_compare_catch_every_mutant(mutant: type[ReferenceSolver],
+                                              tmp_path: Path) -> None:
     from mpsbench.cases import get_case
     from mpsbench.results.compare import compare, load_results
     from mpsbench.results.sweep import plan, run_tasks

@@ -458,15 +458,15 @@ def test_a_weight_defined_here_compiles_into_the_kernels():
         name = "test-quartic"
 
         @staticmethod
-        def w_inside(r, re):  # type: ignore[no-untyped-def]
+        def w_inside(r, re):
             return (1 - r / re) ** 4
 
         @staticmethod
-        def dw_inside(r, re):  # type: ignore[no-untyped-def]
+        def dw_inside(r, re):
             return -4 / re * (1 - r / re) ** 3
 
         @staticmethod
-        def d2w_inside(r, re):  # type: ignore[no-untyped-def]
+        def d2w_inside(r, re):
             return 12 / re**2 * (1 - r / re) ** 2
 
     pos, box, f = cloud((True, True), seed=21)
@@ -524,7 +524,7 @@ def test_compile_watch_counts_compilations_not_calls_of_compiled_code():
     from mpsbench.solvers.numba_backend._jit import watch_compiles
 
     @numba.njit
-    def plus_one(x):  # type: ignore[no-untyped-def]
+    def plus_one(x):
         return x + 1
 
     with watch_compiles() as watch:

@@ -296,8 +296,8 @@ def test_gradient_of_periodic_mode_matches_lattice_sum(wf: str, ratio: float) ->
     pairs = build_pairs(pos, ratio, box)
     n0, _ = lattice_constants(wf, ratio)
     g = gradient(pairs, phi, weight.w(pairs.r, ratio), n0)
-    a, b = np.meshgrid(np.arange(-5, 6), np.arange(-5, 6), indexing="ij")
-    a, b = a.ravel().astype(float), b.ravel().astype(float)
+    ia, ib = np.meshgrid(np.arange(-5, 6), np.arange(-5, 6), indexing="ij")
+    a, b = ia.ravel().astype(float), ib.ravel().astype(float)
     r = np.hypot(a, b)
     keep = (r > 0) & (r <= ratio)
     a, r = a[keep], r[keep]
@@ -344,7 +344,7 @@ def test_pressure_gradient_momentum(wf: str, jittered_periodic_cloud) -> None:
         f = fn(pairs, p, w, n0)
         scale = np.abs(f).sum()
         assert scale > 0
-        assert np.all(np.abs(f.sum(axis=0)) <= 1e-13 * scale), fn.__name__
+        assert np.all(np.abs(f.sum(axis=0)) <= 1e-13 * scale), fn.name
     f1 = pgm1(pairs, p, w, n0)
     # PGM1's (p_j - pmin_i) is not antisymmetric: it does not conserve momentum
     assert np.max(np.abs(f1.sum(axis=0))) > 1e-3 * np.abs(f1).sum()

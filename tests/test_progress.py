@@ -58,12 +58,13 @@ def test_eta_follows_the_work_not_the_run_count(toys: object,
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     now = [0.0]
     monkeypatch.setattr("mpsbench.results.progress.time.perf_counter", lambda: now[0])
-    p = Progress(_tasks(2), stream=io.StringIO())
+    stream = io.StringIO()
+    p = Progress(_tasks(2), stream=stream)
     p.costs, p.total_work = {"r0": 1.0, "r1": 9.0}, 10.0
     now[0] = 10.0
     p(1, 2, _record(0), False)  # a tenth of the work in 10 s: 90 s left, not 10
     assert p.eta() == pytest.approx(90.0)
-    line = p.stream.getvalue()
+    line = stream.getvalue()
     assert line.startswith("[1/2     10s eta 1:30] completed r0 1.0s")
 
 

@@ -24,7 +24,7 @@ def git(repo: Path, *args: str) -> str:
 
 
 @pytest.fixture
-def repo(tmp_path: Path) -> Path:
+def repo(tmp_path: Path) -> Iterator[Path]:
     """A git checkout holding one committed module, ``provtoy.py``."""
     root = tmp_path / "repo"
     root.mkdir()

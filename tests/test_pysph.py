@@ -14,6 +14,7 @@ import importlib.util
 import numpy as np
 import pytest
 
+from mpsbench.physics.config import FlowPhysics
 from mpsbench.run.protocol import Status
 from mpsbench.run.runner import run
 from mpsbench.testing.problems import periodic_flow_problem
@@ -82,6 +83,7 @@ def test_guard_stops_a_runaway_particle_before_pysph_sees_it() -> None:
     """A fluid particle faster than c0 is caught inside the step (the post-stage guard), so
     PySPH's neighbour search never bins a runaway or NaN position (its segfault)."""
     problem = periodic_flow_problem(n_side=8)
+    assert isinstance(problem.physics, FlowPhysics)
     fluid = np.flatnonzero(problem.particles.kind == 0)
     problem.particles.vel[fluid[0]] = (3.0 * problem.physics.c0, 0.0)
     res = run("pysph-wcsph", problem, max_steps=3)

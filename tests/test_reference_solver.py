@@ -346,7 +346,7 @@ def test_moving_wall_develops_a_linear_couette_profile(wall_velocity: str) -> No
         c0=1.0,
         wall_velocity=wall_velocity,
     )
-    layers = LayerAverage("u", 1, np.linspace(0.0, height, ny + 1), "u", at=[1.0])
+    layers = LayerAverage("u", 1, list(np.linspace(0.0, height, ny + 1)), "u", at=[1.0])
     result = run("reference", problem, end_time=1.0, probes=[layers])
     assert result.status == Status.COMPLETED, result.reason
     u = np.asarray(layers.values[-1]) / u_lid

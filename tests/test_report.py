@@ -125,7 +125,7 @@ def test_the_solver_table_gives_the_time_to_solution_against_the_first_solver() 
     ratio = table["time to solution [implicit / numba]"]
     assert ratio.loc[5e-5] == 1.5
     assert ratio.isna().loc[2.5e-5]
-    assert table.loc[5e-5, "wall_time_s [numba]"] == 2.0
+    assert table.at[5e-5, "wall_time_s [numba]"] == 2.0
 
 
 def test_the_solver_table_leaves_out_empty_and_shared_columns() -> None:

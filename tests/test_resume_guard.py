@@ -256,9 +256,10 @@ def test_the_diffusion_dt_limit_is_the_operators_own() -> None:
     assembles (the Fourier symbol on the lattice gives it exactly)."""
     import numpy as np
     from mpsbench.solvers.reference import ReferenceSolver
-    from mpsbench.validations.diffusion.case import KAPPA
+    from mpsbench.validations.diffusion.case import KAPPA, DiffusionCase
 
     case = get_case("diffusion")
+    assert isinstance(case, DiffusionCase)
     for lap, wf, re, l0 in (("khayyer-gotoh", "wf1", 2.1, 1 / 20), ("xu-jin", "wf2", 3.1, 1 / 20),
                             ("koshizuka-oka", "wf1", 4.0, 1 / 16)):
         params = {**case.defaults(), "laplacian": lap, "weight": wf, "re_ratio": re, "l0": l0}
@@ -269,9 +270,12 @@ def test_the_diffusion_dt_limit_is_the_operators_own() -> None:
 
 
 def test_a_fixed_dt_above_the_limit_is_refused_and_is_unstable() -> None:
+    from mpsbench.validations.diffusion.case import DiffusionCase
+
     from mpsbench.run.runner import run
 
     case = get_case("diffusion")
+    assert isinstance(case, DiffusionCase)
     params = {**case.defaults(), "laplacian": "khayyer-gotoh", "re_ratio": 2.1, "l0": 1 / 40}
     limit = case.estimate(params).dt_limit
     assert limit is not None

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib.util
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -33,7 +34,7 @@ def test_step_is_alpha_s_and_acoustic_scales_with_the_step() -> None:
     assert acoustic.stabilization_alpha(1e-4, 0.01, 0.2) == pytest.approx(0.01, rel=1e-12)
 
 
-def _run(backend: str, dt: float, steps: int, **physics: object) -> np.ndarray:
+def _run(backend: str, dt: float, steps: int, **physics: Any) -> np.ndarray:
     problem = problems.column_in_tank_problem(dt=dt, stabilization=True, **physics)
     s = make_solver(backend)
     s.setup(problem)

@@ -18,6 +18,7 @@ from mpsbench.validations.cavity import metrics as cm
 
 from mpsbench import cli
 from mpsbench.errors import ConfigError
+from mpsbench.physics.config import FlowPhysics
 from mpsbench.physics.particles import Kind
 
 
@@ -71,7 +72,8 @@ def test_build_has_a_sliding_lid_and_closed_walls() -> None:
     (motion,) = problem.wall_motions
     assert motion.displace is False and motion.tag == cc.LID_TAG
     assert "sliding-walls" in problem.requirements()["boundaries"]
-    assert problem.physics.nu == pytest.approx(0.01)  # type: ignore[union-attr]
+    assert isinstance(problem.physics, FlowPhysics)
+    assert problem.physics.nu == pytest.approx(0.01)
     with pytest.raises(ConfigError, match="l0 = 0.03"):
         cc.build({**cc.CASE.defaults(), "l0": 0.03})
 

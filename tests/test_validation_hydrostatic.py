@@ -17,6 +17,7 @@ from mpsbench.validations.hydrostatic import metrics as hm
 from mpsbench.validations.hydrostatic.reference import RHO0, G
 
 from mpsbench import cli
+from mpsbench.physics.config import FlowPhysics
 from mpsbench.physics.particles import Kind
 
 H, L0 = 0.3, 0.02
@@ -85,7 +86,8 @@ def test_build_fills_the_tank_with_the_column() -> None:
     fluid = p.pos[p.kind == Kind.FLUID]
     assert len(fluid) == 7 * 10  # round(0.2 / 0.03) x round(0.3 / 0.03)
     assert fluid[:, 1].max() == pytest.approx(0.3 - 0.015)
-    assert problem.physics.gravity == (0.0, -G)  # type: ignore[union-attr]
+    assert isinstance(problem.physics, FlowPhysics)
+    assert problem.physics.gravity == (0.0, -G)
     assert problem.requirements()["features"] == {"stabilization"}
     no_stab = hc.build({**hc.CASE.defaults(), "stabilization": False})
     assert no_stab.requirements()["features"] == set()

@@ -16,6 +16,7 @@ from mpsbench.validations.poiseuille import metrics as pm
 
 from mpsbench import cli
 from mpsbench.errors import ConfigError
+from mpsbench.physics.config import FlowPhysics
 from mpsbench.physics.particles import Kind
 
 L = pm.L
@@ -42,7 +43,8 @@ def test_geometry_and_body_force(wall_row: str) -> None:
     fluid = p.pos[p.kind == Kind.FLUID]
     assert np.allclose(np.unique(np.round(fluid[:, 1], 12)), rows)
     assert len(rows) == (39 if wall_row == "on-plate" else 40)
-    assert problem.physics.gravity == (pm.F, 0.0)  # type: ignore[union-attr]
+    assert isinstance(problem.physics, FlowPhysics)
+    assert problem.physics.gravity == (pm.F, 0.0)
     assert not np.any(p.vel)  # at rest, plates too
     assert problem.box.periodic == (True, False) and not problem.wall_motions
     assert "periodic-x" in problem.requirements()["boundaries"]

@@ -17,6 +17,7 @@ from mpsbench.validations.taylor_green import metrics as tm
 
 from mpsbench import cli
 from mpsbench.errors import ConfigError
+from mpsbench.physics.config import FlowPhysics
 from mpsbench.physics.particles import block
 
 TG = tm.flow(100.0)
@@ -81,7 +82,8 @@ def test_build_is_the_periodic_lattice_with_the_exact_velocity() -> None:
     p = problem.particles
     assert p.n == 400 and problem.box.periodic == (True, True)
     np.testing.assert_allclose(p.vel, exact_velocity(p.pos, 0.0), atol=1e-15)
-    assert problem.physics.nu == pytest.approx(0.01)  # type: ignore[union-attr]
+    assert isinstance(problem.physics, FlowPhysics)
+    assert problem.physics.nu == pytest.approx(0.01)
     assert problem.requirements()["boundaries"] == {"periodic"}
 
 

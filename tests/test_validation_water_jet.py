@@ -384,7 +384,8 @@ def test_model_choices_come_from_the_registries() -> None:
                             ("gradient", GRADIENTS)):
         choices = case.param(param).choices
         assert choices is not None and set(registry.names()) == set(choices), param
-    assert case.param("gradient").choices[:3] == ("pgm1", "pgm2", "pgm3")
+    gradients = case.param("gradient").choices
+    assert gradients is not None and gradients[:3] == ("pgm1", "pgm2", "pgm3")
 
 
 def test_plate_profile_folds_the_two_sides_and_cp_errors_measure_it() -> None:

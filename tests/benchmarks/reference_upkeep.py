@@ -40,7 +40,7 @@ def upkeep_share(n: int, steps: int) -> tuple[float, float, int]:
         finally:
             spent[0] += time.perf_counter() - t
 
-    skinned.SkinnedPairs.get = timed  # type: ignore[method-assign]
+    skinned.SkinnedPairs.get = timed
     try:
         s = ReferenceSolver()
         s.setup(workload(n))
@@ -55,7 +55,7 @@ def upkeep_share(n: int, steps: int) -> tuple[float, float, int]:
         wall = time.perf_counter() - t0
         return 1e3 * wall / steps, 100.0 * spent[0] / wall, s.neigh.builds - builds
     finally:
-        skinned.SkinnedPairs.get = original  # type: ignore[method-assign]
+        skinned.SkinnedPairs.get = original
 
 
 def memory_per_particle(n: int, steps: int = 12) -> tuple[int, float, float]:
