@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import json
 import subprocess
 import sys
@@ -110,6 +111,55 @@ def test_code_commit_of_a_checkout_and_of_a_vcs_install(
     finally:
         sys.modules.pop("vcstoy", None)
         provenance._distributions.cache_clear()
+
+
+def test_an_installed_copy_reads_the_commit_its_build_recorded(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``pip install .`` copies the code out of the checkout; setup.py's build_py leaves the
+    commit in the package (BUILD_COMMIT_FILE), which code_commit reads when git cannot tell."""
+    site = tmp_path / "site"
+    pkg = site / "buildtoy"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "sub" / "__init__.py").write_text("")
+    monkeypatch.syspath_prepend(str(site))
+    record = pkg / provenance.BUILD_COMMIT_FILE
+    try:
+        importlib.import_module("buildtoy.sub")
+        assert provenance.code_commit("buildtoy.sub") is None  # no record, no checkout
+        record.write_text(json.dumps({"commit": "fedcba9876543210", "dirty": False}))
+        assert provenance.build_commit("buildtoy") == ("fedcba987654", False)
+        assert provenance.code_commit("buildtoy.sub") == "fedcba987654"  # a module inside it
+        record.write_text(json.dumps({"commit": "fedcba9876543210", "dirty": True}))
+        assert provenance.code_commit("buildtoy.sub") == "fedcba987654-dirty"
+        for hostile in ("not json", "[1, 2]", '{"commit": 5, "dirty": false}',
+                        '{"commit": "abc"}', '{"commit": "", "dirty": false}',
+                        '{"commit": "abc", "dirty": "no"}'):
+            record.write_text(hostile)
+            assert provenance.build_commit("buildtoy") == (None, None), hostile
+    finally:
+        for name in ("buildtoy.sub", "buildtoy"):
+            sys.modules.pop(name, None)
+
+
+def test_setup_py_records_the_checkouts_commit(tmp_path: Path) -> None:
+    """setup.py's checkout_state, run on this repository when it is a git checkout, gives what
+    git says (the build hook writes exactly that into the wheel)."""
+    root = Path(__file__).parents[1]
+    head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
+                          text=True)
+    if head.returncode != 0:
+        pytest.skip("not a git checkout (an sdist): the hook records nothing")
+    spec = importlib.util.spec_from_file_location("mpsbench_setup", root / "setup.py")
+    assert spec is not None and spec.loader is not None
+    hook = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hook)  # not __main__: defines the hook, builds nothing
+    status = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                            capture_output=True, text=True, check=True).stdout
+    assert hook.checkout_state() == {"commit": head.stdout.strip()[:12],
+                                     "dirty": bool(status.strip())}
+    assert hook.COMMIT_FILE == provenance.BUILD_COMMIT_FILE
 
 
 def test_physical_cores_from_cpuinfo(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -24,6 +24,9 @@ from typing import Any
 # asking does not import them (numba takes a second to import)
 LIBRARIES = ("numpy", "scipy", "numba", "pandas")
 COMMIT_CHARS = 12  # enough to be unique in any repository this project meets
+# written next to mpsbench/__init__.py by setup.py's build_py when a wheel is built from a git
+# checkout (``pip install .``): {"commit": ..., "dirty": ...}
+BUILD_COMMIT_FILE = "_build_commit.json"
 GIT_TIMEOUT_S = 5.0
 # /proc/cpuinfo keys of the CPU's name: x86, some ARM boards, other ARM, MIPS
 CPU_MODEL_KEYS = ("model name", "Model", "Hardware", "cpu model")
@@ -135,9 +138,27 @@ def git_state(path: str) -> tuple[str | None, bool | None]:
     return commit, dirty
 
 
+def build_commit(package: str) -> tuple[str | None, bool | None]:
+    """(commit, dirty) that the build of an installed top-level ``package`` recorded in its
+    :data:`BUILD_COMMIT_FILE` (setup.py: a wheel built from a git checkout); (None, None) when
+    there is none or it cannot be read."""
+    file = getattr(sys.modules.get(package), "__file__", None)
+    if not file:
+        return None, None
+    try:
+        state = json.loads((Path(file).parent / BUILD_COMMIT_FILE).read_text())
+        commit, dirty = state["commit"], state["dirty"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None, None
+    if not isinstance(commit, str) or not commit or not isinstance(dirty, bool):
+        return None, None
+    return commit[:COMMIT_CHARS], dirty
+
+
 def code_commit(module_name: str) -> str | None:
     """The commit of the code of a module: its git checkout's (``-dirty`` appended when that
-    checkout has local changes), else the commit pip recorded when it installed the module's
+    checkout has local changes), else the one its package's build recorded
+    (:func:`build_commit`), else the commit pip recorded when it installed the module's
     distribution from a VCS URL (PEP 610 ``direct_url.json``), else None."""
     module = sys.modules.get(module_name)
     file = getattr(module, "__file__", None)
@@ -146,6 +167,9 @@ def code_commit(module_name: str) -> str | None:
         if commit:
             return commit + ("-dirty" if dirty else "")
     top = module_name.split(".")[0]
+    commit, dirty = build_commit(top)
+    if commit:
+        return commit + ("-dirty" if dirty else "")
     for dist_name in _distributions().get(top, []):
         try:
             text = metadata.distribution(dist_name).read_text("direct_url.json")
@@ -167,6 +191,8 @@ def mpsbench_environment() -> dict[str, Any]:
     import mpsbench
 
     commit, dirty = git_state(mpsbench.__file__ or "")
+    if commit is None:  # an installed copy: the commit its build recorded, if any
+        commit, dirty = build_commit("mpsbench")
     return {"mpsbench_version": mpsbench.__version__, "git_commit": commit, "git_dirty": dirty}
 
 
