@@ -437,7 +437,8 @@ def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
     from mpsbench.cases import get_case
     from mpsbench.results.folder import MANIFEST, write_top_level
     from mpsbench.results.records import atomic_write_text
-    from mpsbench.results.sections import safe_render_case, verdict
+    from mpsbench.results.render_pool import render_cases
+    from mpsbench.results.sections import verdict
     from mpsbench.results.sweep import run_tasks
 
     _say_solver(args)
@@ -465,14 +466,12 @@ def _validate_all_locked(args: argparse.Namespace, out: Path, jobs: int,
         for case in cases:
             write_paraview(folder[case.name],
                            [r for r in records if r.get("case") == case.name], out)
-    sections: list[CaseSection] = []
-    for name in names:
-        if name in broken:
-            sections.append(broken[name])
-            continue
-        case = get_case(name)
-        recs = [r for r in records if r.get("case") == case.name]
-        sections.append(safe_render_case(case, recs, folder[case.name]))
+    loaded = [get_case(name) for name in names if name not in broken]
+    rendered = iter(render_cases(
+        [(case, [r for r in records if r.get("case") == case.name], folder[case.name])
+         for case in loaded], jobs))
+    sections: list[CaseSection] = [broken[name] if name in broken else next(rendered)
+                                   for name in names]
     for sec in sections:
         if sec.error and sec.name not in broken:
             print(f"{sec.name}: {sec.error}", file=sys.stderr)
