@@ -14,6 +14,7 @@ is what :func:`.sections.safe_render_case` makes of it, in the process or here a
 from __future__ import annotations
 
 import multiprocessing
+import os
 from collections.abc import Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from pathlib import Path
@@ -27,7 +28,9 @@ Work = tuple[Case, list[dict[str, Any]], Path]
 
 def render_cases(work: Sequence[Work], processes: int) -> list[CaseSection]:
     """:func:`safe_render_case` of every (case, records, folder), in up to ``processes``
-    processes (1, or a single case: here, in order)."""
+    processes, no more than this machine's CPUs (``--jobs`` may count a cluster's workers);
+    1, or a single case: here, in order."""
+    processes = min(processes, os.cpu_count() or 1)
     if processes < 2 or len(work) < 2:
         return [safe_render_case(*w) for w in work]
     order = sorted(range(len(work)), key=lambda k: -len(work[k][1]))  # the largest first
