@@ -81,3 +81,22 @@ def test_cases_rendered_in_processes_match_rendered_here(tmp_path: Path) -> None
     assert here_pid in (a / "toy-where" / "report.md").read_text()
     pooled_report = (b / "toy-where" / "report.md").read_text()
     assert "rendered by process" in pooled_report and here_pid not in pooled_report
+
+
+def test_report_refuses_a_jobs_count_below_one(tmp_path: Path,
+                                               capsys: Any) -> None:
+    assert cli.main(["report", str(tmp_path), "--jobs", "0"]) == 2
+    assert "--jobs 0 is not allowed: an integer >= 1" in capsys.readouterr().err
+
+
+def test_report_renders_the_same_with_one_job_and_with_two(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    with only_cases(ToyDiffusion(), ToyCounter()):
+        assert cli.main(["validate", "all", "--tier", "smoke", "--out", str(out),
+                         "--jobs", "1"]) == 0
+        shutil.copytree(out, tmp_path / "again")
+        assert cli.main(["report", str(out), "--jobs", "1"]) == 0
+        assert cli.main(["report", str(tmp_path / "again"), "--jobs", "2"]) == 0
+    for name in ("toy-diffusion", "toy-counter"):
+        assert files(tmp_path / "again" / name) == files(out / name)
+    assert (tmp_path / "again" / "summary.md").read_text() == (out / "summary.md").read_text()

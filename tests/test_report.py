@@ -46,7 +46,8 @@ def test_report_rerenders_without_running(folder: Path, monkeypatch: pytest.Monk
     shutil.rmtree(folder / "toy-diffusion" / "figures")
     # the case's current code is used: a new finding shows up without new runs
     monkeypatch.setattr(ToyDiffusion, "findings", lambda self, records: "A **new** finding.")
-    assert cli.main(["report", str(folder)]) == 0
+    # --jobs 1: rendering processes import the code from disk and would not see this patch
+    assert cli.main(["report", str(folder), "--jobs", "1"]) == 0
     summary = (folder / "summary.md").read_text()
     assert "A **new** finding." in summary and "PASS (2/2 cases pass)" in summary
     page = (folder / "index.html").read_text()

@@ -17,10 +17,12 @@ would give it: 1 when a gate fails or a claim of the paper is refuted.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from mpsbench.commands.validate import MAX_AUTO_JOBS  # the same default as validate's
 from mpsbench.errors import UsageError
 
 # pandas and the cases are imported inside the functions: 'mpsbench --help' stays fast
@@ -43,6 +45,9 @@ def register(sub: Any) -> None:
                    help="do not call the cases' table/figure code; reuse the files on disk")
     p.add_argument("--strict-claims", action="store_true",
                    help="exit 1 when a gate fails or a claim of the paper is refuted")
+    p.add_argument("--jobs", type=int, default=None,
+                   help="processes rendering the cases side by side (default: the number of "
+                   f"CPUs, at most {MAX_AUTO_JOBS}; 1: one after the other)")
     p.set_defaults(func=cmd_report)
 
 
@@ -50,6 +55,8 @@ def cmd_report(args: argparse.Namespace) -> int:
     from mpsbench.results.lock import folder_lock
 
     out = Path(args.dir)
+    if args.jobs is not None and args.jobs < 1:
+        raise UsageError(f"--jobs {args.jobs} is not allowed: an integer >= 1")
     if not out.is_dir():
         raise UsageError(f"{out}: no such folder")
     with folder_lock(out, f"mpsbench report {out}", option="DIR"):
@@ -59,12 +66,12 @@ def cmd_report(args: argparse.Namespace) -> int:
 def _report(args: argparse.Namespace, out: Path) -> int:
     from mpsbench.cases import get_case
     from mpsbench.results.folder import case_folders, read_manifest, write_top_level
+    from mpsbench.results.render_pool import render_cases
     from mpsbench.results.sections import (
         CaseSection,
         case_from_disk,
         claim_counts,
         in_solver_order,
-        safe_render_case,
         verdict,
     )
 
@@ -93,8 +100,11 @@ def _report(args: argparse.Namespace, out: Path) -> int:
             params += [p.name for p in case.params]
         else:
             sections[name] = case_from_disk(name, records, folder, why)
-    for name, case, folder, records in to_render:
-        sections[name] = safe_render_case(case, records, folder)
+    jobs = args.jobs or max(1, min(os.cpu_count() or 1, MAX_AUTO_JOBS))
+    rendered = render_cases([(case, records, folder) for _, case, folder, records in to_render],
+                            jobs)
+    for (name, *_), section in zip(to_render, rendered, strict=True):
+        sections[name] = section
     # cases that could not run at all are known only from the manifest
     for entry in manifest.get("cases", []):
         name = str(entry.get("name", ""))

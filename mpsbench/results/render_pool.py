@@ -6,6 +6,10 @@ alone 10 s), while the run pool's workers had ended.  :func:`render_cases` gives
 pool of ``processes`` fresh (spawned) processes, the largest case first.  A case renders into
 its own folder, so they do not meet; the sections come back in the order given.
 
+A process imports the cases' code afresh (spawn): what it renders with is the code on disk,
+so a case's class changed at run time in this process (a test's monkeypatch) is not seen
+there; with one process (``--jobs 1``) everything renders here.
+
 Nothing is lost to the pool: a case that cannot be sent to a process (it holds something that
 does not pickle) or whose process dies is rendered here instead, and a bug in a case's code
 is what :func:`.sections.safe_render_case` makes of it, in the process or here alike.
