@@ -17,12 +17,11 @@ would give it: 1 when a gate fails or a claim of the paper is refuted.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from mpsbench.commands.validate import MAX_AUTO_JOBS  # the same default as validate's
+from mpsbench.commands.validate import MAX_AUTO_JOBS, auto_jobs  # validate's default
 from mpsbench.errors import UsageError
 
 # pandas and the cases are imported inside the functions: 'mpsbench --help' stays fast
@@ -100,9 +99,8 @@ def _report(args: argparse.Namespace, out: Path) -> int:
             params += [p.name for p in case.params]
         else:
             sections[name] = case_from_disk(name, records, folder, why)
-    jobs = args.jobs or max(1, min(os.cpu_count() or 1, MAX_AUTO_JOBS))
     rendered = render_cases([(case, records, folder) for _, case, folder, records in to_render],
-                            jobs)
+                            auto_jobs(args.jobs))
     for (name, *_), section in zip(to_render, rendered, strict=True):
         sections[name] = section
     # cases that could not run at all are known only from the manifest

@@ -38,6 +38,12 @@ ORDER = 30
 MAX_AUTO_JOBS = 4
 
 
+def auto_jobs(requested: int | None) -> int:
+    """``--jobs`` as given, or the number of CPUs, at most :data:`MAX_AUTO_JOBS` (validate all,
+    report)."""
+    return requested or max(1, min(os.cpu_count() or 1, MAX_AUTO_JOBS))
+
+
 def _tier(value: str) -> str:
     """``--tier``: checked when parsed, without importing the cases to build the parser."""
     from mpsbench.cases import TIERS
@@ -391,7 +397,7 @@ def validate_all(args: argparse.Namespace, solvers: list[str]) -> int:
     from mpsbench.results.sweep import plan
 
     out = Path(args.out) if args.out else default_all_out(args.tier)
-    jobs = args.jobs or max(1, min(os.cpu_count() or 1, MAX_AUTO_JOBS))
+    jobs = auto_jobs(args.jobs)
     manifest = _manifest(args, solvers, jobs)
     t0 = time.perf_counter()
     cases: list[Case] = []

@@ -16,8 +16,8 @@ G = 9.81
 class Geometry:
     """Column L x H [m] at the back wall of a tank W [m] long with side walls wall_height [m].
 
-    ``collision``: whether the quick and paper tiers run this geometry with the collision model,
-    i.e. whether it belongs to the variants' own models there (the analysis reads it)."""
+    ``collision``: whether every tier runs this geometry with the collision model, i.e. whether
+    it belongs to the variants' own models there (the tiers and the analysis read it)."""
 
     column_width: float
     column_height: float
