@@ -114,6 +114,9 @@ def test_diffusion_rejects(field: str, value: Any, allowed: str) -> None:
         ("stabilization", 1, r"True or False"),
         ("stabilization_walls", None, r"True or False"),
         ("clip_negative_pressure", "no", r"True or False"),
+        ("shifting", "yes", r"True or False"),
+        ("shifting_coefficient", -1.0, r"\[0.0, 10.0\]"),
+        ("shifting_coefficient", float("nan"), r"\[0.0, 10.0\]"),
     ],
 )
 def test_flow_physics_rejects(field: str, value: Any, allowed: str) -> None:

@@ -152,6 +152,10 @@ class FlowPhysics:
     # "acoustic": alpha_s per acoustic step cfl l0 / c0, whatever the scheme's step
     stabilization_rate: Literal["step", "acoustic"] = "step"
     wall_velocity: Literal["prescribed", "mirror"] = "prescribed"
+    # particle shifting after the move (docs/method.md section 5b): D = shifting_coefficient
+    # r_e max|u| dt
+    shifting: bool = False
+    shifting_coefficient: float = 1.0
 
     kind = "flow"
 
@@ -169,7 +173,9 @@ class FlowPhysics:
         _in_range(o, "alpha_s", self.alpha_s, 0.0, 1.0)
         _choice(o, "wall_velocity", self.wall_velocity, ("prescribed", "mirror"))
         _choice(o, "stabilization_rate", self.stabilization_rate, STABILIZATION_RATES)
-        for flag in ("clip_negative_pressure", "collision", "stabilization", "stabilization_walls"):
+        _in_range(o, "shifting_coefficient", self.shifting_coefficient, 0.0, 10.0)
+        for flag in ("clip_negative_pressure", "collision", "stabilization", "stabilization_walls",
+                     "shifting"):
             _boolean(o, flag, getattr(self, flag))
 
     def stabilization_alpha(self, dt: float, l0: float, cfl: float) -> float:

@@ -115,6 +115,8 @@ class Problem:
                 features.add("collision")
             if ph.stabilization:
                 features.add("stabilization")
+            if ph.shifting:
+                features.add("shifting")
             if ph.wall_velocity == "mirror":
                 features.add("mirror-walls")
         if self.models.gradient_correction:

@@ -36,6 +36,10 @@ layout (the reference: numpy over a pair list; numba: compiled kernels over cell
                            increments at u + du; then u += du
 ``_move(dt, stab)``        step 6: with ``stab`` = (prefactor, with_walls) the stabilization
                            increments at the r* geometry; r += dt du; u += the increments
+``_shift(factor, cap)``    step 6b (``FlowPhysics.shifting``): make the neighbour data valid
+                           for the moved positions; for inner fluid particles dr = ``factor``
+                           sum_j pair_ij r_ij capped at ``cap``, u += (dr . grad) u, r += dr
+                           (:class:`~mpsbench.physics.operators.Shifting`)
 ``_particles_changed(k)``  the particle set changed (``keep`` of the open boundaries)
 ``rebuild_neighbours()``   rebuild the neighbour data now (timed by ``mpsbench bench``)
 =========================  =====================================================================
@@ -61,7 +65,12 @@ from mpsbench.physics.config import DiffusionPhysics, FlowPhysics
 from mpsbench.physics.gradients import GradientModel, get_gradient
 from mpsbench.physics.laplacians import LaplacianModel, get_laplacian
 from mpsbench.physics.neighbours import build_pairs
-from mpsbench.physics.operators import STABILIZATION, lattice_constants, number_density
+from mpsbench.physics.operators import (
+    SHIFTING,
+    STABILIZATION,
+    lattice_constants,
+    number_density,
+)
 from mpsbench.physics.particles import Box, Kind, Particles
 from mpsbench.physics.weights import WeightFunction, get_weight
 from mpsbench.run.protocol import Capabilities, Health, Problem, SolverBase, health_of
@@ -71,6 +80,8 @@ FloatArray = NDArray[np.float64]
 #: the boundaries every backend built on this skeleton supports: the protocol's defaults and
 #: sliding walls (``WallMotion(displace=False)``, held in place by :meth:`_hold_anchored`)
 SCHEME_BOUNDARIES = Capabilities().boundaries | {"sliding-walls"}
+#: and the features: the protocol's defaults and particle shifting (the ``_shift`` hook)
+SCHEME_FEATURES = Capabilities().features | {"shifting"}
 
 
 @dataclass(frozen=True)
@@ -221,6 +232,11 @@ class SchemeSolver(SolverBase):
             stab = (STABILIZATION.prefactor(self.stabilization_alpha, self.l0, self.n0),
                     ph.stabilization_walls)
         self._move(dt, stab)
+        # 6b: particle shifting at the moved positions
+        if ph.shifting:
+            factor = SHIFTING.prefactor(ph.shifting_coefficient, self.re, self._max_speed(), dt,
+                                        self.n0)
+            self._shift(factor, SHIFTING.CAP * self.l0)
         # 7: wrap, open boundaries
         self._wrap()
         self._open_boundaries(dt)
@@ -332,6 +348,9 @@ class SchemeSolver(SolverBase):
         raise NotImplementedError
 
     def _move(self, dt: float, stabilization: tuple[float, bool] | None) -> None:
+        raise NotImplementedError
+
+    def _shift(self, factor: float, cap: float) -> None:
         raise NotImplementedError
 
     def _particles_changed(self, keep: NDArray[np.bool_]) -> None:

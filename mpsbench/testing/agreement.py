@@ -72,12 +72,14 @@ def _column(**physics: Any) -> Callable[[], Problem]:
 
 def agreement_problems() -> Iterator[tuple[str, Callable[[], Problem], int]]:
     """(label, builder, steps): a dam break under every gradient and option, periodic flows
-    (one crossing the periodic edges), a Couette channel, diffusion."""
+    (one crossing the periodic edges, one shifting), a Couette channel, diffusion."""
     for grad in ("pgm1", "pgm2", "pgm3"):
         yield f"column in tank, {grad}", _column(gradient=grad), 40
     yield "column in tank, stabilization", _column(stabilization=True), 40
     yield "column in tank, collision", _column(collision=True), 40
     yield "column in tank, mirror walls", _column(wall_velocity="mirror"), 40
+    # a free surface (its particles do not shift) and walls in the shifting's sums
+    yield "column in tank, shifting", _column(shifting=True, shifting_coefficient=4.0), 40
 
     def jittered() -> Problem:
         return problems.periodic_flow_problem(velocity=0.2, models=Models(n0_from="lattice"))
@@ -88,6 +90,12 @@ def agreement_problems() -> Iterator[tuple[str, Callable[[], Problem], int]]:
         return pr
 
     yield "periodic box, jittered, random velocities", jittered, 40
+
+    def shifted() -> Problem:
+        return problems.periodic_flow_problem(velocity=0.2, models=Models(n0_from="lattice"),
+                                              shifting=True)
+
+    yield "periodic box, jittered, shifting", shifted, 40
     yield "periodic box, drift across the edges", crossing, 120
     yield ("channel, moving lid (Couette)",
            lambda: problems.channel_problem(top_velocity=(0.01, 0.0)), 40)

@@ -26,7 +26,7 @@ from mpsbench.physics.config import FlowPhysics
 from mpsbench.physics.gradients import GRADIENTS, get_gradient
 from mpsbench.physics.laplacians import LAPLACIANS, get_laplacian
 from mpsbench.physics.neighbours import build_pairs
-from mpsbench.physics.operators import lattice_constants, number_density
+from mpsbench.physics.operators import SHIFTING, lattice_constants, number_density, pair_formula
 from mpsbench.physics.particles import Kind
 from mpsbench.physics.weights import get_weight
 from mpsbench.run.protocol import Capabilities, Problem
@@ -415,6 +415,67 @@ def check_stabilization_inner_only(make: Factory, caps: Capabilities) -> None:
         f"free-surface particle(s) by up to {worst:.3g} m/s: it applies to inner fluid only")
 
 
+SHIFT_COEFFICIENT = 4.0  # A of check_shifting_oracle: a shift of ~1e-3 l0 in its one step
+
+
+def check_shifting_oracle(make: Factory, caps: Capabilities) -> None:
+    """Particle shifting moves and corrects particles as its definition says.
+
+    A jittered periodic box with seeded random velocities, one step with and one without
+    shifting (same fixed dt, coefficient 4): the step without it is the state the shift
+    starts from, and the kit applies :class:`~mpsbench.physics.operators.Shifting` to that
+    state itself (its pair formulas over a pair list the kit builds, n0 of the lattice, the
+    step's free-surface flags).  The shifted step must equal it to round-off (1e-9 l0 in the
+    positions, 1e-9 relative in the velocities), and the shift must be visible (above 1e-4
+    l0), else the check would test nothing.
+    """
+    problem = problems.periodic_flow_problem(models=_models(caps, n0_from="lattice"),
+                                             velocity=0.2)
+    ph = problem.physics
+    assert isinstance(ph, FlowPhysics)
+    s0 = make()
+    s0.setup(problem)
+    dt = 0.5 * float(s0.stable_dt())
+    plain = _one_step(make, problem, dt)
+    shifted = _one_step(make, dataclasses.replace(problem, physics=dataclasses.replace(
+        ph, shifting=True, shifting_coefficient=SHIFT_COEFFICIENT)), dt)
+    a, b = plain.state(), shifted.state()
+    assert a.n == b.n, f"the runs have {a.n} and {b.n} particles"
+    weight = get_weight(problem.models.weight)
+    l0, box = problem.l0, problem.box
+    re = problem.models.re_ratio * l0
+    n0 = lattice_constants(weight, problem.models.re_ratio, l0)[0]
+    pairs = build_pairs(a.pos, re, box)
+    c = pair_formula(SHIFTING.pair, weight, pairs.r, re)
+    g = pair_formula(SHIFTING.velocity_pair, weight, pairs.r, re)
+    speed = float(np.sqrt((a.vel**2).sum(axis=1)).max())
+    factor = SHIFTING.prefactor(SHIFT_COEFFICIENT, re, speed, dt, n0)
+    dr = factor * pairs.sum_vec_antisym(c[:, None] * pairs.dx)
+    norm = np.sqrt((dr**2).sum(axis=1))
+    cap = SHIFTING.CAP * l0
+    over = norm > cap
+    dr[over] *= (cap / norm[over])[:, None]
+    surface = np.asarray(_diag(shifted, "free_surface"), bool)
+    dr[(a.kind != Kind.FLUID) | surface] = 0.0
+    du = pairs.diff(a.vel)
+    vel = a.vel.copy()
+    for k in range(2):
+        grad = pairs.sum_vec_sym((du[:, k] * g)[:, None] * pairs.dx)
+        vel[:, k] += SHIFTING.gradient_factor(n0) * (grad * dr).sum(axis=1)
+    carried = _rel(vel, a.vel)
+    assert float(np.abs(dr).max()) > 1e-4 * l0 and carried > 1e-6, (
+        f"the oracle's shift is only {float(np.abs(dr).max()) / l0:.3g} l0 and changes the "
+        f"velocities by {carried:.3g} (relative): the check would test nothing")
+    off = b.pos - (a.pos + dr)
+    box.minimum_image(off)
+    moved = float(np.abs(off).max()) / l0
+    assert moved <= 1e-9, (
+        f"shifted positions are {moved:.3g} l0 from the definition's (the shift itself is up "
+        f"to {float(np.abs(dr).max()) / l0:.3g} l0)")
+    dv = _rel(b.vel, vel)
+    assert dv <= 1e-9, f"shifted velocities differ from the definition's by {dv:.3g} (relative)"
+
+
 def check_sliding_wall(make: Factory, caps: Capabilities, n_steps: int = 40) -> None:
     """A sliding lid (``WallMotion(displace=False)``) keeps its particles in place, carries its
     velocity and drags the fluid.
@@ -502,6 +563,9 @@ def physics_checks() -> list[Check]:
         Check("check_stabilization_inner_only", check_stabilization_inner_only,
               "the stabilization acts on inner fluid particles only",
               needs={**flow_walls, "features": frozenset({"stabilization"})}),
+        Check("check_shifting_oracle", check_shifting_oracle,
+              "one step with particle shifting against its definition",
+              needs={**flow_periodic, "features": frozenset({"shifting"})}),
         Check("check_sliding_wall", check_sliding_wall,
               "a sliding lid stays in place, keeps its velocity and drags the fluid",
               needs={"physics": frozenset({"flow"}),

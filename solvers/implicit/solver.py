@@ -30,7 +30,7 @@ from mpsbench.physics.weights import within_support
 from mpsbench.run.implicit_scheme import SemiImplicitScheme
 from mpsbench.run.linsolve import METHODS, PRECONDITIONERS
 from mpsbench.run.protocol import Capabilities
-from mpsbench.run.scheme import SCHEME_BOUNDARIES
+from mpsbench.run.scheme import SCHEME_BOUNDARIES, SCHEME_FEATURES
 
 FloatArray = NDArray[np.float64]
 
@@ -40,7 +40,8 @@ class ImplicitSolver(SemiImplicitScheme, ReferenceSolver):
 
     name = "implicit"
     version = "1.0"
-    capabilities = Capabilities(scheme="semi-implicit", boundaries=SCHEME_BOUNDARIES)
+    capabilities = Capabilities(scheme="semi-implicit", boundaries=SCHEME_BOUNDARIES,
+                                features=SCHEME_FEATURES)
     bench_default = False  # `mpsbench bench` times it only when asked (--solver implicit)
     options = (
         Option("source", "density", "PPE source: density (n* - n0), divergence (div u*), "

@@ -23,7 +23,7 @@ from numba import njit
 
 from mpsbench.physics.gradients import GradientModel
 from mpsbench.physics.laplacians import LaplacianModel
-from mpsbench.physics.operators import STABILIZATION, mps_radial
+from mpsbench.physics.operators import SHIFTING, STABILIZATION, mps_radial
 from mpsbench.physics.weights import SUPPORT_RTOL, WeightFunction
 
 SUPPORT = 1.0 + SUPPORT_RTOL  # a pair is inside when r <= re * SUPPORT
@@ -109,6 +109,8 @@ def gradient(model: GradientModel) -> Gradient:
 
 
 STABILIZATION_PAIR = jit(STABILIZATION.pair)
+SHIFTING_PAIR = jit(SHIFTING.pair)
+SHIFTING_VELOCITY_PAIR = jit(SHIFTING.velocity_pair)
 RADIAL = jit(mps_radial)  # W / r^2 of the original gradient (Eq. 5) and divergence
 
 
@@ -200,3 +202,9 @@ def number_density_pair(wt: Weight) -> Any:
 def stabilization_pair(wt: Weight) -> Any:
     """``(r, re) -> the stabilization's pair weight`` (W')."""
     return pair_of(wt, STABILIZATION_PAIR)
+
+
+def shifting_pairs(wt: Weight) -> tuple[Any, Any]:
+    """``(r, re) -> `` the shifting's concentration pair (W'/r) and velocity-gradient pair
+    (W/r^2)."""
+    return pair_of(wt, SHIFTING_PAIR), pair_of(wt, SHIFTING_VELOCITY_PAIR)

@@ -16,6 +16,8 @@ particle's own sum is done at the end of its row, in the same kernel:
 :func:`collide`          collision increments at u + du, du += them, u += du
 :func:`move`             stabilization at r*, r += dt du, u += the stabilization, the
                          displacement and max |u| (the next time step's)
+:func:`shift`            (with particle shifting) the shift at the moved positions,
+                         u += (grad u) . dr, r += dr, the displacement and max |u|
 =======================  ==============================================================
 
 Every row is computed by its own particle ("owner computes", rows of a full list): no two
@@ -55,6 +57,7 @@ from .kernels import (
     laplacian_row,
     pmin_row,
     separation,
+    shifting_row,
     stabilization_row,
 )
 from .steps import integer_gamma, state_of
@@ -366,6 +369,70 @@ def move(wt: fm.Weight, periodic: bool) -> Any:
     return move
 
 
+# --------------------------------------------------------------------------- 6b: shifting
+
+
+@factory
+def shift(wt: fm.Weight, periodic: bool) -> Any:
+    """Particle shifting (the scheme's step 6b, docs/method.md section 5b) for inner fluid
+    rows (fluid, ``surface`` false): dr = factor sum_j W'_ij / r_ij r_ij, capped at ``cap``;
+    u += gfactor (grad u) . dr; r += dr; every other row is copied.
+
+    Arguments ``(offsets, nbr, X, V, period, kind, surface, re, factor, gfactor, cap, Xref,
+    X2, V2, order, bounds, partial)``: new positions and velocities into ``X2``, ``V2``;
+    ``partial`` as :func:`move`'s.
+    """
+    row = shifting_row(wt, periodic)
+    sep = separation(periodic)
+
+    def shift(offsets, nbr, X, V, period, kind, surface, re, factor, gfactor, cap, Xref, X2,
+              V2, order, bounds, partial):
+        x = X[0]
+        y = X[1]
+        u = V[0]
+        v = V[1]
+        px = period[0]
+        py = period[1]
+        hx = half_width(px)
+        hy = half_width(py)
+        for t in prange(order.shape[0]):
+            b = order[t]
+            disp = 0.0
+            speed = 0.0
+            for i in range(bounds[b], bounds[b + 1]):
+                xn = x[i]
+                yn = y[i]
+                ui = u[i]
+                vi = v[i]
+                if kind[i] == FLUID and not surface[i]:
+                    sx, sy, gux, guy, gvx, gvy = row(offsets, nbr, x, y, u, v, i, px, py, hx,
+                                                     hy, re)
+                    ddx = factor * sx
+                    ddy = factor * sy
+                    norm = np.sqrt(ddx * ddx + ddy * ddy)
+                    if norm > cap:
+                        ddx *= cap / norm
+                        ddy *= cap / norm
+                    ui += gfactor * (gux * ddx + guy * ddy)
+                    vi += gfactor * (gvx * ddx + gvy * ddy)
+                    xn += ddx
+                    yn += ddy
+                X2[0, i] = xn
+                X2[1, i] = yn
+                V2[0, i] = ui
+                V2[1, i] = vi
+                _, _, d2 = sep(Xref[0], Xref[1], i, xn, yn, px, py, hx, hy)
+                if d2 > disp or d2 != d2:
+                    disp = d2
+                s2 = ui * ui + vi * vi
+                if s2 > speed or s2 != s2:
+                    speed = s2
+            partial[b, 0] = disp
+            partial[b, 1] = speed
+
+    return shift
+
+
 __all__ = [
     "PMIN_NONE",
     "PMIN_ROW",
@@ -378,4 +445,5 @@ __all__ = [
     "move",
     "pmin_all",
     "predict",
+    "shift",
 ]

@@ -588,6 +588,49 @@ def _collision() -> Any:
 collision = kernel(_collision())
 
 
+@row_function
+def shifting_row(wt: fm.Weight, periodic: bool) -> Any:
+    """The two sums of particle shifting at particle i (docs/method.md section 5b):
+    ``(offsets, nbr, x, y, u, v, i, px, py, hx, hy, re) -> (sx, sy, gux, guy, gvx, gvy)``,
+    s = sum_j W'_ij / r_ij r_ij and grad u = sum_j (u_j - u_i) r_ij W_ij / r_ij^2 without
+    their prefactors, every neighbour within re."""
+    term, grad = fm.shifting_pairs(wt)
+    sep = separation(periodic)
+
+    def shifting_row(offsets, nbr, x, y, u, v, i, px, py, hx, hy, re):
+        re_s = re * SUPPORT
+        xi = x[i]
+        yi = y[i]
+        ui = u[i]
+        vi = v[i]
+        sx = 0.0
+        sy = 0.0
+        gux = 0.0
+        guy = 0.0
+        gvx = 0.0
+        gvy = 0.0
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            dx, dy, r2 = sep(x, y, j, xi, yi, px, py, hx, hy)
+            r = np.sqrt(r2)
+            use = inside(r, r2, re_s)
+            c = term(r, re)
+            g = grad(r, re)
+            c = c if use else 0.0
+            g = g if use else 0.0
+            sx += c * dx
+            sy += c * dy
+            du = (u[j] - ui) * g
+            dv = (v[j] - vi) * g
+            gux += du * dx
+            guy += du * dy
+            gvx += dv * dx
+            gvy += dv * dy
+        return sx, sy, gux, guy, gvx, gvy
+
+    return shifting_row
+
+
 @factory
 def stabilization(wt: fm.Weight) -> Any:
     """Velocity increments of the stabilization (docs/method.md section 5): du_i = factor
@@ -637,6 +680,7 @@ __all__ = [
     "pressure_gradient",
     "row_function",
     "separation",
+    "shifting_row",
     "stabilization",
     "stabilization_row",
 ]

@@ -42,10 +42,10 @@ from mpsbench.params import Option
 from mpsbench.physics import operators as ops
 from mpsbench.physics.boundaries import carry
 from mpsbench.physics.config import DiffusionPhysics, FlowPhysics
-from mpsbench.physics.operators import DIM
+from mpsbench.physics.operators import DIM, SHIFTING
 from mpsbench.physics.particles import Kind, Particles
 from mpsbench.run.protocol import Capabilities, Health, Problem
-from mpsbench.run.scheme import SCHEME_BOUNDARIES, EquationOfState, SchemeSolver
+from mpsbench.run.scheme import SCHEME_BOUNDARIES, SCHEME_FEATURES, EquationOfState, SchemeSolver
 
 from . import formulas, fused, kernels, steps
 from ._jit import report, vectorized, watch_compiles
@@ -84,7 +84,7 @@ class NumbaSolver(SchemeSolver):
 
     name = "numba"
     version = "2.0"
-    capabilities = Capabilities(boundaries=SCHEME_BOUNDARIES)
+    capabilities = Capabilities(boundaries=SCHEME_BOUNDARIES, features=SCHEME_FEATURES)
     options = (
         Option("threads", 0, "numba threads; 0: automatic (one below 8000 particles or in a "
                "worker process of a pool, else numba's thread count)", kind=int, minimum=0),
@@ -432,6 +432,20 @@ class NumbaSolver(SchemeSolver):
         self._k(fused.move(self.fm.weight, self._periodic))(
             *small, self._X, self._V, self._DU, self.period, p.kind, self._inner, walls, self.re,
             factor, stabilization is not None, dt, self._Xref, self._X2, self._V2,
+            self._sched.order, self._sched.bounds, self._partial,
+        )
+        disp2, speed2 = fused.combine_max(self._partial)
+        self._swap()
+        self._disp = float(np.sqrt(disp2))
+        self._speed2 = float(speed2)
+
+    def _shift(self, factor: float, cap: float) -> None:
+        self._update_neighbours()  # the moved positions may need a new list
+        p = self.p
+        _, small = self._lists()
+        self._k(fused.shift(self.fm.weight, self._periodic))(
+            *small, self._X, self._V, self.period, p.kind, self.free_surface, self.re, factor,
+            SHIFTING.gradient_factor(self.n0), cap, self._Xref, self._X2, self._V2,
             self._sched.order, self._sched.bounds, self._partial,
         )
         disp2, speed2 = fused.combine_max(self._partial)

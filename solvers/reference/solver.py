@@ -9,7 +9,7 @@ The scheme (set-up, the order of a step, time step, open boundaries) is
 * diffusion: L, the chosen Laplacian, assembled once as a sparse matrix (particles are fixed);
 * flow (WC-MPS): predictor (viscosity + gravity), number density at r*, equation of state,
   free-surface detection, corrector with the pressure-gradient model, optional collision,
-  optional stabilization.
+  optional stabilization, optional particle shifting.
 
 Boundary conventions: WALL particles take part in pressure (EOS) and every operator; DUMMY
 particles complete the number density and carry the wall velocity into the viscous term but are
@@ -27,10 +27,10 @@ from numpy.typing import NDArray
 from mpsbench.physics.boundaries import mirror_velocity
 from mpsbench.physics.config import DiffusionPhysics, FlowPhysics
 from mpsbench.physics.neighbours import PairList, build_pairs
-from mpsbench.physics.operators import STABILIZATION, number_density, pair_formula
+from mpsbench.physics.operators import SHIFTING, STABILIZATION, number_density, pair_formula
 from mpsbench.physics.particles import Kind
 from mpsbench.run.protocol import Capabilities
-from mpsbench.run.scheme import SCHEME_BOUNDARIES, EquationOfState, SchemeSolver
+from mpsbench.run.scheme import SCHEME_BOUNDARIES, SCHEME_FEATURES, EquationOfState, SchemeSolver
 
 from .neighbours import SkinnedPairs
 
@@ -42,7 +42,7 @@ class ReferenceSolver(SchemeSolver):
 
     name = "reference"
     version = "1.0"
-    capabilities = Capabilities(boundaries=SCHEME_BOUNDARIES)
+    capabilities = Capabilities(boundaries=SCHEME_BOUNDARIES, features=SCHEME_FEATURES)
 
     # ------------------------------------------------------------------ diffusion
     def _setup_diffusion(self, ph: DiffusionPhysics) -> tuple[float, FloatArray]:
@@ -185,6 +185,30 @@ class ReferenceSolver(SchemeSolver):
         self.neigh.note_motion(disp)
         if stab is not None:
             self.p.vel += stab
+
+    def _shift(self, factor: float, cap: float) -> None:
+        """Particle shifting (:class:`mpsbench.physics.operators.Shifting`) at the moved
+        positions: both sums from the same state, then u += (dr . grad) u and r += dr on inner
+        fluid particles."""
+        self._update_neighbours()
+        pairs, p = self.pairs, self.p
+        c = pair_formula(SHIFTING.pair, self.weight, pairs.r, self.re)
+        g = pair_formula(SHIFTING.velocity_pair, self.weight, pairs.r, self.re)
+        dr = np.empty_like(p.pos)
+        for ax in range(2):
+            dr[:, ax] = factor * pairs.sum_antisym(c * pairs.dx[:, ax])
+        norm = np.sqrt(dr[:, 0] * dr[:, 0] + dr[:, 1] * dr[:, 1])
+        over = norm > cap
+        dr[over] *= (cap / norm[over])[:, None]
+        dr[(p.kind != Kind.FLUID) | self.free_surface] = 0.0
+        du = pairs.diff(p.vel)
+        gf = SHIFTING.gradient_factor(self.n0)
+        grad = [[pairs.sum_sym(du[:, a] * pairs.dx[:, b] * g) for b in range(2)]
+                for a in range(2)]
+        for a in range(2):
+            p.vel[:, a] += gf * (grad[a][0] * dr[:, 0] + grad[a][1] * dr[:, 1])
+        p.pos += dr
+        self.neigh.note_motion(dr)
 
     def _particles_changed(self, keep: NDArray[np.bool_]) -> None:
         self.neigh.invalidate()
