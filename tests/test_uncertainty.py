@@ -189,6 +189,15 @@ def test_model_records_leave_out_the_refinement_runs() -> None:
     assert case.model_records([other]) == [other]
 
 
+def test_a_refinement_grid_widened_with_or_stays_one() -> None:
+    grid = RefinementGrid(model=["a"], l0=[0.05, 0.1])
+    wider = grid | {"dt": [0.01, 0.02]}
+    assert isinstance(wider, RefinementGrid) and wider == {**grid, "dt": [0.01, 0.02]}
+    assert grid == {"model": ["a"], "l0": [0.05, 0.1]}  # the original is unchanged
+    # a plain grid widened by a refinement grid is a plain grid (the left side decides)
+    assert type({"model": ["b"]} | grid) is dict
+
+
 def test_a_diverged_finer_run_leaves_its_set_not_converged() -> None:
     ok = record("a", 0.1, 0.2, 1.0)
     finer = {**record("a", 0.1, 0.1, 1.2), "status": "diverged"}

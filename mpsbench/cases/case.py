@@ -70,7 +70,11 @@ class RefinementGrid(dict[str, Sequence[Any]]):
     """A grid of a tier that exists for a refinement set (docs/method.md section 9): its runs
     give u_num to the model grid's runs, and :meth:`Case.model_records` leaves them out of the
     tables and comparisons across models.  Written like a grid: ``RefinementGrid(l0=[L / 80])``
-    or ``RefinementGrid({"l0": [L / 80]})``."""
+    or ``RefinementGrid({"l0": [L / 80]})``; ``grid | {...}`` is a refinement grid too (a
+    plain dict's ``|`` would drop the kind, and the runs would count as the model grid's)."""
+
+    def __or__(self, other: Any) -> RefinementGrid:  # type: ignore[override]
+        return RefinementGrid({**self, **other})
 
 
 class Case:
