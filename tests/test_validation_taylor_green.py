@@ -96,9 +96,20 @@ def test_tiers_hold_the_refinement_set_and_reset_alpha_s() -> None:
     quick = tc.CASE.expand("quick")
     head = [r for r in quick if all(r[k] == v for k, v in tc.RECOMMENDED.items())
             and not r["stabilization"]]
-    assert sorted(round(1 / r["l0"]) for r in head) == [20, 30, 40]
+    # the refinement set without and with particle shifting
+    for shifting in (False, True):
+        assert sorted(round(1 / r["l0"]) for r in head if r["shifting"] == shifting) == [
+            20, 28, 40]
     off = [r for r in tc.CASE.expand("smoke", {"alpha_s": [0.02]}) if not r["stabilization"]]
     assert off and all(r["alpha_s"] == 0.01 for r in off)
+    # the shifting coefficient does nothing without shifting: back to its default
+    plain = [r for r in tc.CASE.expand("smoke", {"shifting_coefficient": [3.0]})
+             if not r["shifting"]]
+    assert plain and all(r["shifting_coefficient"] == 1.0 for r in plain)
+    # the refinement grids stay refinement grids when a tier widens them with |
+    assert len(tc.CASE.expand("paper", part="refinement")) == 16
+    assert all(isinstance(g, type(tc.REFINE)) for g in (tc.REFINE_SHIFTED,
+                                                        tc.TIERS["paper"][3]))
 
 
 # --------------------------------------------------------------------------- gate and claims
@@ -125,6 +136,35 @@ def test_momentum_gate() -> None:
     assert gate.passed is None
 
 
+def test_claims_pair_runs_of_the_same_shifting() -> None:
+    on = record("pgm1", True, pressure_error=0.3, number_density_deviation=0.005)
+    off = record("pgm1", False, pressure_error=0.6, number_density_deviation=0.01)
+    shifted_off = record("pgm1", False, pressure_error=0.1, number_density_deviation=0.001,
+                         shifting=True)
+    c4, _ = ta.claims([on, off, shifted_off])
+    # one pair (the stabilized run has no shifted twin), and it is the unshifted one
+    assert c4.passed is True and c4.detail.count(" with, ") == 1
+    assert "30.00% with, 60.00% without" in c4.detail
+
+
+def test_shifting_findings_and_labels() -> None:
+    runs = [record("pgm1", False, velocity_error=0.45, disorder=0.072, run_id="a"),
+            record("pgm1", False, velocity_error=0.22, disorder=0.062, shifting=True,
+                   run_id="b"),
+            record("pgm1", False, velocity_error=0.3, shifting=True, shifting_coefficient=2.0,
+                   run_id="c")]
+    df = ta.grid(pd.DataFrame(runs))
+    (line,) = ta._shifting_findings(df)
+    assert "N = 40: 22.00% with, 45.00% without (disorder 0.062 and 0.072 l0)" in line
+    assert ta.label(runs[1]).endswith("no stabilization, shifting, N = 40, Re = 100")
+    assert "shifting A = 2" in ta.label(runs[2])
+    assert "shifting" not in ta.label(runs[0])
+    # a record from before the option (no column, or NaN in a frame) is not shifted
+    old = {k: v for k, v in runs[0].items() if k not in ta.SHIFT}
+    assert not ta.shifted(old) and not ta.shifted({"shifting": math.nan})
+    assert ta._shifting_findings(ta.grid(pd.DataFrame([old]))) == []
+
+
 def test_claims_c4_and_c5() -> None:
     on = record("pgm1", True, pressure_error=0.3, number_density_deviation=0.005)
     off = record("pgm1", False, pressure_error=0.6, number_density_deviation=0.01)
@@ -144,7 +184,8 @@ def test_smoke_tier_end_to_end(tmp_path: Path) -> None:
             str(out)]
     assert cli.main(args) == 0
     df = pd.read_csv(out / "results.csv")
-    assert len(df) == 4 and (df["status"] == "completed").all()
+    assert len(df) == 5 and (df["status"] == "completed").all()
+    assert df["shifting"].sum() == 1
     for col in tc.METRICS:
         assert col in df.columns, col
     # the exact solution starts the run: the error after 0.05 s is a few percent, not zero

@@ -13,6 +13,7 @@ import pandas as pd
 from mpsbench.cases import analysis as an
 from mpsbench.cases import plotting as pl
 
+from .analysis import shifted
 from .metrics import HEADLINE_N, RECOMMENDED, SIDE, flow
 
 
@@ -39,13 +40,16 @@ def figures(records: list[dict[str, Any]], arrays: Callable[[str], dict[str, np.
 
 def _name(r: pd.Series) -> str:
     stab = "stab." if r["stabilization"] else "no stab."
+    if shifted(r):
+        stab += ", shifting"
     return f"{r['laplacian']} / {r['gradient']}, {stab}"
 
 
 def _style(r: pd.Series) -> dict[str, Any]:
     dashes = {"pgm1": "-", "pgm2": "--", "pgm3": ":"}
-    return {"color": pl.colour(str(r["laplacian"])), "ls": dashes.get(str(r["gradient"]), "-."),
-            "lw": 1.6 if r["stabilization"] else 0.9}
+    style = {"color": pl.colour(str(r["laplacian"])), "ls": dashes.get(str(r["gradient"]), "-."),
+             "lw": 1.6 if r["stabilization"] else 0.9}
+    return style
 
 
 def _fig_decay(g: pd.DataFrame, arrays: Callable[[str], dict[str, np.ndarray]], outdir: Path,
@@ -63,9 +67,11 @@ def _fig_decay(g: pd.DataFrame, arrays: Callable[[str], dict[str, np.ndarray]], 
             continue
         e = np.asarray(data["energy_ratio"]) * np.array(
             [tg.kinetic_energy_ratio(t) for t in data["t"]])
-        ax_e.semilogy(data["t"], np.maximum(e, 1e-6), label=_name(r), **_style(r))
+        mark = "s" if shifted(r) else "o"
+        ax_e.semilogy(data["t"], np.maximum(e, 1e-6), label=_name(r), **_style(r),
+                      **({"marker": mark, "ms": 3, "markevery": 5} if shifted(r) else {}))
         if "error_t" in data:
-            ax_u.plot(data["error_t"], 100 * np.asarray(data["velocity_error"]), marker="o",
+            ax_u.plot(data["error_t"], 100 * np.asarray(data["velocity_error"]), marker=mark,
                       ms=3, label=_name(r), **_style(r))
     ax_e.set_xlabel("t [s]")
     ax_e.set_ylabel("E(t) / E(0)")
@@ -77,15 +83,15 @@ def _fig_decay(g: pd.DataFrame, arrays: Callable[[str], dict[str, np.ndarray]], 
     ax_u.grid(alpha=0.3)
     for ax in (ax_e, ax_u):
         ax.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
-    fig.suptitle(f"Taylor-Green vortex, Re = {re:g}, N = {n} (thick: stabilized; line style: "
-                 "PGM1 solid, PGM2 dashed, PGM3 dotted)", fontsize=9)
+    fig.suptitle(f"Taylor-Green vortex, Re = {re:g}, N = {n} (thick: stabilized; squares: "
+                 "shifting; line style: PGM1 solid, PGM2 dashed, PGM3 dotted)", fontsize=9)
     return pl.save(fig, outdir / f"decay_N-{n}_Re-{re:g}.png")
 
 
 def _fig_particles(head: pd.DataFrame, arrays: Callable[[str], dict[str, np.ndarray]],
                    outdir: Path) -> Path | None:
     runs = [r for _, r in an.sort_models(head, ["stabilization", "reynolds"]).iterrows()
-            if "x" in arrays(str(r["run_id"]))][:2]
+            if "x" in arrays(str(r["run_id"]))][:3]
     if not runs:
         return None
     fig, axes = pl.figure(1, len(runs), width=4.0, height=4.2)
