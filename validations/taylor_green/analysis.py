@@ -14,9 +14,9 @@ pair sum is dropped (measured: xu-jin / PGM2 stabilized at N = 40, 1.9e-3, both 
 No gate holds the accuracy of the recommended configuration: its error is reported with u_num
 and the observed order (measured at Re = 100, N = 40: 5.9 % at 0.1 s, 45 % at 1 s, the kinetic
 energy 69 % below the exact one; with particle shifting 7.4 % and 22 %, 38 % below; the 1 s
-error is not converged in l0 either way; docs/method.md 6 g).  A tolerance set to what the method reaches would hold
-nothing, and one set from the exact solution fails every configuration: those numbers are
-findings, in the findings and the tables, not a gate.
+error is not converged in l0 either way; docs/method.md 6 g).  A tolerance set to what the
+method reaches would hold nothing, and one set from the exact solution fails every
+configuration: those numbers are findings, in the findings and the tables, not a gate.
 
 Claims where the seed paper speaks: C4 (the stabilization reduces pressure noise: here the
 pressure's shape error at the end, with against without), C5 (it keeps the number density near
