@@ -296,6 +296,41 @@ def test_other_flows_agree(name):
         assert a.n != build().particles.n, "particles must have entered or left"
 
 
+def test_an_outflow_drops_particles_without_a_rebuild():
+    """The open channel over 400 steps: particles leave many times, the numba backend drops
+    them from its lists instead of rebuilding (fewer builds than particle-set changes would
+    need) and stays with the reference backend."""
+    problem = problems.open_channel_problem(stabilization=True, collision=True)
+    nb, ref = NumbaSolver(), make_solver("reference")
+    nb.setup(problem)
+    ref.setup(problem)
+    changes = []
+    changed = nb._particles_changed
+
+    def count(keep):
+        removal = len(keep) == len(nb.static_n)
+        changed(keep)
+        # after particles only left, the list is kept (compacted) for the particles now there
+        kept = nb.neigh.csr is not None and nb.neigh.csr.n == nb.p.n
+        changes.append((removal, kept))
+
+    nb._particles_changed = count  # type: ignore[method-assign]
+    for _ in range(400):
+        dt = ref.stable_dt()
+        nb.step(dt)
+        ref.step(dt)
+    removals = [kept for removal, kept in changes if removal]
+    assert len(removals) >= 5, f"only {len(removals)} steps dropped particles: nothing tested"
+    assert all(removals), f"{removals.count(False)} of {len(removals)} removals dropped the list"
+    assert not any(kept for removal, kept in changes if not removal)  # new rows: a rebuild
+    # (some removals fall on steps that rebuild for the displacement anyway)
+    assert nb.counters["neighbour_builds"] < ref.counters["neighbour_builds"]
+    a, b = nb.state(), ref.state()
+    assert a.n == b.n and np.array_equal(a.kind, b.kind)
+    assert np.abs(a.pos - b.pos).max() <= 1e-10 * problem.l0
+    assert float(np.abs(a.vel - b.vel).max()) <= 1e-10 * float(np.abs(b.vel).max())
+
+
 @pytest.mark.parametrize("name", ["pgm2-wf1-linear", "pgm3-stab-no-walls", "periodic",
                                   "inflow-outflow"])
 def test_sorted_and_unsorted_layouts_agree(name):

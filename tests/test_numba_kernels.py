@@ -164,6 +164,43 @@ def test_skinned_list_rebuilds_only_when_needed():
     assert nl.update(moved[:-1]) and nl.builds == 3  # particle count changed
 
 
+def _rows(csr, ids=None):
+    """Every row's neighbours as a set of ids (``ids`` maps the list's indices)."""
+    ids = np.arange(csr.n) if ids is None else ids
+    return [set(ids[csr.nbr[csr.offsets[i]:csr.offsets[i + 1]]].tolist()) for i in range(csr.n)]
+
+
+@pytest.mark.parametrize("serial", [False, True])
+def test_compacting_the_list_equals_building_it_without_the_dropped(serial):
+    """``compact`` after particles left: the same rows as a list built from the build positions
+    of the particles kept (dropping particles only removes pairs), the sub-list too, renumbered,
+    still valid for the same moves; a dropped member of a rigid group refuses it."""
+    pos, box, _ = cloud((True, False), seed=3)
+    re = 3.1 * L0
+    nl = neighbour_list.CellNeighbourList(re, SKIN, box, r_small=2.1 * L0, serial=serial)
+    group = np.full(len(pos), -1, np.int64)
+    group[:7] = 0  # a rigid group (its pairs are static): dropping one of it needs a rebuild
+    nl.set_static(group=group, loose=np.zeros(len(pos), bool))
+    nl.build(pos)
+    keep = np.random.default_rng(4).uniform(size=len(pos)) > 0.1
+    keep[:7] = True
+    fresh = neighbour_list.CellNeighbourList(re, SKIN, box, r_small=2.1 * L0)
+    fresh.set_static(group=group[keep], loose=np.zeros(int(keep.sum()), bool))
+    fresh.build(pos[keep])
+    assert nl.compact(keep)
+    assert nl.csr is not None and nl.small is not None and fresh.csr is not None
+    assert nl.csr.n == int(keep.sum()) and len(nl.csr) == len(fresh.csr)
+    assert _rows(nl.csr) == _rows(fresh.csr)
+    assert fresh.small is not None and _rows(nl.small) == _rows(fresh.small)
+    assert sorted(nl.csr.order.tolist()) == list(range(nl.csr.n))
+    assert nl.group is not None and np.array_equal(nl.group, group[keep])
+    assert nl.valid_after(0.4 * SKIN, nl.csr.n) and not nl.valid_after(0.6 * SKIN, nl.csr.n)
+    assert not nl.update(pos[keep]) and nl.builds == 1
+    drop_rigid = np.ones(nl.csr.n, bool)
+    drop_rigid[2] = False
+    assert not nl.compact(drop_rigid) and nl.csr.n == int(keep.sum())
+
+
 # --------------------------------------------------------------------------- operators
 
 

@@ -138,6 +138,33 @@ class CellNeighbourList:
         ``displacement`` each since (a NaN displacement says no)."""
         return self.csr is not None and self.csr.n == n and 2.0 * displacement <= self.skin
 
+    def compact(self, keep: NDArray[np.bool_]) -> bool:
+        """Drop the particles where ``keep`` is false from the list, the sub-list and the
+        static marks, renumbering the others, without a rebuild; return False (and do
+        nothing) when there is no list or a dropped particle is in a rigid group.
+
+        A list that was valid stays valid: the particles kept have not moved, and the build
+        positions they are measured against are kept with them.  Dropping particles only
+        removes pairs; the static number density (pairs inside a rigid group) changes only
+        when a group member goes, hence the condition."""
+        keep = np.ascontiguousarray(keep, np.bool_)
+        if self.csr is None or self._ref is None or len(keep) != self.csr.n:
+            return False
+        if self.group is not None and len(self.group) == len(keep) and (
+                self.group[~keep] >= 0).any():
+            return False
+        index = (np.cumsum(keep) - 1).astype(np.uint32)
+        rows = np.flatnonzero(keep).astype(np.int64)
+        self.csr = _keep_rows(self.csr, keep, rows, index, self.serial)
+        if self.small is not None:
+            self.small = _keep_rows(self.small, keep, rows, index, self.serial)
+        self._ref = np.ascontiguousarray(self._ref[keep])
+        if self.group is not None and len(self.group) == len(keep):
+            self.group = np.ascontiguousarray(self.group[keep])
+            if self.loose is not None:
+                self.loose = np.ascontiguousarray(self.loose[keep])
+        return True
+
     def build(self, pos: FloatArray) -> None:
         """Build the list (and the sub-list) for ``pos`` now."""
         pos = as_pos(pos)
@@ -201,6 +228,42 @@ def within(
     nbr = np.empty(int(offsets[-1]), np.uint32)
     pick(_fill_within, serial)(pos, csr.offsets, csr.nbr, csr.period, cut2, offsets, nbr)
     return CSRNeighbours(offsets, nbr, csr.n, float(cutoff), csr.period, csr.order)
+
+
+@kernel
+def _count_kept(offsets, nbr, keep, rows, counts):
+    for t in prange(rows.shape[0]):
+        i = rows[t]
+        m = 0
+        for k in range(offsets[i], offsets[i + 1]):
+            m += keep[nbr[k]]
+        counts[t] = m
+
+
+@kernel
+def _fill_kept(offsets, nbr, keep, rows, index, new_offsets, out):
+    for t in prange(rows.shape[0]):
+        i = rows[t]
+        s = new_offsets[t]
+        for k in range(offsets[i], offsets[i + 1]):
+            j = nbr[k]
+            if keep[j]:
+                out[s] = index[j]
+                s += 1
+
+
+def _keep_rows(csr: CSRNeighbours, keep: NDArray[np.bool_], rows: IntArray,
+               index: NDArray[np.uint32], serial: bool) -> CSRNeighbours:
+    """``csr`` without the rows and entries of the dropped particles, renumbered by ``index``
+    (the kept entries stay in their order)."""
+    counts = np.empty(len(rows), np.int64)
+    pick(_count_kept, serial)(csr.offsets, csr.nbr, keep, rows, counts)
+    offsets = np.zeros(len(rows) + 1, np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    nbr = np.empty(int(offsets[-1]), np.uint32)
+    pick(_fill_kept, serial)(csr.offsets, csr.nbr, keep, rows, index, offsets, nbr)
+    order = index[csr.order[keep[csr.order]]].astype(np.int64)
+    return CSRNeighbours(offsets, nbr, len(rows), csr.cutoff, csr.period, order)
 
 
 __all__ = ["CellNeighbourList", "build_pairs_cells", "csr_to_pairs", "within"]

@@ -330,13 +330,21 @@ class NumbaSolver(SchemeSolver):
             self._rebuild()
 
     def _particles_changed(self, keep: NDArray[np.bool_]) -> None:
+        # particles only left (an outflow, most steps of a jet): the list loses their rows
+        # and entries instead of being rebuilt (four rebuilds in five on the water jet)
+        reference, moved = self._Xref, self._disp
+        compacted = len(keep) == len(self.static_n) and self.neigh.compact(keep)
         # the kernels want contiguous arrays; a boolean selection already is one
         self.static_n = carry(self.static_n, keep)
         self.group = carry(self.group + 1, keep) - 1  # new particles: no group
         self.loose = carry(self.loose, keep)
         self.birth.carry(keep)
-        self.neigh.set_static(group=self.group, loose=self.loose)
+        if not compacted:
+            self.neigh.set_static(group=self.group, loose=self.loose)
         self._adopt(self.p)
+        if compacted:
+            self._Xref = np.ascontiguousarray(reference[:, keep])
+            self._disp = moved
 
     def rebuild_neighbours(self) -> None:
         """Sort the particles and rebuild the neighbour list now (``mpsbench bench`` times
