@@ -314,7 +314,7 @@ def test_an_outflow_drops_particles_without_a_rebuild():
         kept = nb.neigh.csr is not None and nb.neigh.csr.n == nb.p.n
         changes.append((removal, kept))
 
-    nb._particles_changed = count  # type: ignore[method-assign]
+    nb._particles_changed = count
     for _ in range(400):
         dt = ref.stable_dt()
         nb.step(dt)
