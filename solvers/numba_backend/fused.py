@@ -44,7 +44,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numba import prange
+from numba import njit, prange
 
 from . import formulas as fm
 from ._jit import factory
@@ -56,11 +56,37 @@ from .kernels import (
     gradient_row,
     laplacian_row,
     pmin_row,
+    row_function,
     separation,
     shifting_row,
     stabilization_row,
 )
 from .steps import integer_gamma, state_of
+
+
+@njit(inline="always")
+def nan_max(m, v):
+    """max(m, v) where a NaN ``v`` wins (a block maximum must show a NaN row)."""
+    return v if v > m or v != v else m
+
+
+@row_function
+def store_row(periodic: bool) -> Any:
+    """Row i's new position and velocity into ``X2``, ``V2``, returning its squared
+    displacement from ``Xref`` (minimum image): ``(X2, V2, Xref, i, xn, yn, ui, vi, px, py,
+    hx, hy) -> d2``; the tail of every pass that moves particles."""
+    sep = separation(periodic)
+
+    def store_row(X2, V2, Xref, i, xn, yn, ui, vi, px, py, hx, hy):
+        X2[0, i] = xn
+        X2[1, i] = yn
+        V2[0, i] = ui
+        V2[1, i] = vi
+        _, _, d2 = sep(Xref[0], Xref[1], i, xn, yn, px, py, hx, hy)
+        return d2
+
+    return store_row
+
 
 PMIN_NONE = 0  # the gradient model does not read p_min
 PMIN_ROW = 1  # it reads p_min of particle i only: computed in the gradient's own row
@@ -117,7 +143,7 @@ def predict(wt: fm.Weight, lap: fm.Laplacian, periodic: bool) -> Any:
     ``viscous`` false no neighbour is visited and the row sums are 0.
     """
     row = laplacian_row(wt, lap, periodic)
-    sep = separation(periodic)
+    store = store_row(periodic)
 
     def predict(offsets, nbr, X, V, U, period, re, pref, s, gfactor, gcorr, viscous, nu, gx, gy,
                 dt, kind, Xref, X2, V2, order, bounds, partial):
@@ -144,19 +170,12 @@ def predict(wt: fm.Weight, lap: fm.Laplacian, periodic: bool) -> Any:
                                          gfactor, gcorr)
                         ax = nu * l0
                         ay = nu * l1
-                        if sa > rows or sa != sa:
-                            rows = sa
+                        rows = nan_max(rows, sa)
                     ui += dt * (ax + gx)
                     vi += dt * (ay + gy)
-                xn = x[i] + dt * ui
-                yn = y[i] + dt * vi
-                V2[0, i] = ui
-                V2[1, i] = vi
-                X2[0, i] = xn
-                X2[1, i] = yn
-                _, _, d2 = sep(Xref[0], Xref[1], i, xn, yn, px, py, hx, hy)
-                if d2 > disp or d2 != d2:
-                    disp = d2
+                d2 = store(X2, V2, Xref, i, x[i] + dt * ui, y[i] + dt * vi, ui, vi, px, py,
+                           hx, hy)
+                disp = nan_max(disp, d2)
             partial[b, 0] = rows
             partial[b, 1] = disp
 
@@ -327,7 +346,7 @@ def move(wt: fm.Weight, periodic: bool) -> Any:
     the block's rows.
     """
     row = stabilization_row(wt, periodic)
-    sep = separation(periodic)
+    store = store_row(periodic)
 
     def move(offsets, nbr, X, V, DU, period, kind, inner, with_walls, re, factor, stabilized,
              dt, Xref, X2, V2, order, bounds, partial):
@@ -351,18 +370,10 @@ def move(wt: fm.Weight, periodic: bool) -> Any:
                                  re)
                     ui += factor * s0
                     vi += factor * s1
-                xn = x[i] + dt * DU[0, i]
-                yn = y[i] + dt * DU[1, i]
-                X2[0, i] = xn
-                X2[1, i] = yn
-                V2[0, i] = ui
-                V2[1, i] = vi
-                _, _, d2 = sep(Xref[0], Xref[1], i, xn, yn, px, py, hx, hy)
-                if d2 > disp or d2 != d2:
-                    disp = d2
-                s2 = ui * ui + vi * vi
-                if s2 > speed or s2 != s2:
-                    speed = s2
+                d2 = store(X2, V2, Xref, i, x[i] + dt * DU[0, i], y[i] + dt * DU[1, i], ui, vi,
+                           px, py, hx, hy)
+                disp = nan_max(disp, d2)
+                speed = nan_max(speed, ui * ui + vi * vi)
             partial[b, 0] = disp
             partial[b, 1] = speed
 
@@ -383,7 +394,7 @@ def shift(wt: fm.Weight, periodic: bool) -> Any:
     ``partial`` as :func:`move`'s.
     """
     row = shifting_row(wt, periodic)
-    sep = separation(periodic)
+    store = store_row(periodic)
 
     def shift(offsets, nbr, X, V, period, kind, surface, re, factor, gfactor, cap, Xref, X2,
               V2, order, bounds, partial):
@@ -417,16 +428,8 @@ def shift(wt: fm.Weight, periodic: bool) -> Any:
                     vi += gfactor * (gvx * ddx + gvy * ddy)
                     xn += ddx
                     yn += ddy
-                X2[0, i] = xn
-                X2[1, i] = yn
-                V2[0, i] = ui
-                V2[1, i] = vi
-                _, _, d2 = sep(Xref[0], Xref[1], i, xn, yn, px, py, hx, hy)
-                if d2 > disp or d2 != d2:
-                    disp = d2
-                s2 = ui * ui + vi * vi
-                if s2 > speed or s2 != s2:
-                    speed = s2
+                disp = nan_max(disp, store(X2, V2, Xref, i, xn, yn, ui, vi, px, py, hx, hy))
+                speed = nan_max(speed, ui * ui + vi * vi)
             partial[b, 0] = disp
             partial[b, 1] = speed
 
