@@ -199,3 +199,17 @@ def test_smoke_tier_end_to_end(tmp_path: Path) -> None:
     figures = {p.name for p in (out / "figures").glob("*.png")}
     assert {"decay_N-20_Re-100.png"} <= figures
     assert (out / "tables" / "runs.csv").exists()
+
+
+def test_side_by_side_pairs_runs_on_their_keys() -> None:
+    """The shared pairing of the claims and findings: each run with the flag on next to the
+    run with it off that matches on the keys the frame has; unmatched runs are left out."""
+    from mpsbench.cases import analysis as an
+
+    df = pd.DataFrame([{"flag": True, "n": 20, "e": 1.0}, {"flag": False, "n": 20, "e": 2.0},
+                       {"flag": True, "n": 40, "e": 3.0}])
+    both = an.side_by_side(df, "flag", ["n", "missing"])
+    assert list(both["n"]) == [20] and list(both["e_on"]) == [1.0]
+    assert list(both["e_off"]) == [2.0]
+    assert an.side_by_side(df.drop(columns="flag"), "flag", ["n"]).empty
+    assert an.side_by_side(df.iloc[:0], "flag", ["n"]).empty

@@ -109,6 +109,17 @@ def select(df: pd.DataFrame, **where: Any) -> pd.DataFrame:
     return df[np.asarray(mask, dtype=bool)]
 
 
+def side_by_side(df: pd.DataFrame, flag: str, keys: Sequence[str]) -> pd.DataFrame:
+    """Runs with boolean ``flag`` on next to the run with it off that matches on ``keys`` (the
+    keys ``df`` has): columns ``<name>_on`` / ``<name>_off``; empty without such pairs."""
+    if df.empty or flag not in df.columns:
+        return pd.DataFrame()
+    use = [k for k in keys if k in df.columns]
+    on = df[df[flag].astype(bool)]
+    off = df[~df[flag].astype(bool)]
+    return on.merge(off, on=use, suffixes=("_on", "_off"))
+
+
 def rows(df: pd.DataFrame) -> list[dict[str, Any]]:
     """The rows of a frame as records (column name -> value)."""
     return [{str(k): v for k, v in r.items()} for r in df.to_dict("records")]

@@ -73,13 +73,8 @@ def gates(records: list[dict[str, Any]]) -> list[CaseCheck]:
 def pairs(df: pd.DataFrame) -> pd.DataFrame:
     """Runs with and without stabilization of one configuration, spacing and duration side by
     side (columns ``<metric>_on`` / ``<metric>_off``)."""
-    keys = ["solver", *CONFIG, "l0", "end_time", "height", "width", "cfl", "c0_factor", "nu"]
-    keys = [k for k in keys if k in df.columns]
-    if df.empty:
-        return pd.DataFrame()
-    on = df[df["stabilization"].astype(bool)]
-    off = df[~df["stabilization"].astype(bool)]
-    both = on.merge(off, on=keys, suffixes=("_on", "_off"))
+    both = an.side_by_side(df, "stabilization", ["solver", *CONFIG, "l0", "end_time", "height",
+                                                  "width", "cfl", "c0_factor", "nu"])
     return an.sort_models(both, ["gradient", "l0"]) if not both.empty else both
 
 

@@ -79,13 +79,8 @@ def gates(records: list[dict[str, Any]]) -> list[CaseCheck]:
 # ---------------------------------------------------------------------- claims
 def pairs(df: pd.DataFrame) -> pd.DataFrame:
     """Runs with and without stabilization of one configuration side by side."""
-    if df.empty:
-        return pd.DataFrame()
-    keys = [k for k in ["solver", *CONFIG, *SHIFT, "l0", "reynolds", "end_time", "cfl"]
-            if k in df.columns]
-    on = df[df["stabilization"].astype(bool)]
-    off = df[~df["stabilization"].astype(bool)]
-    both = on.merge(off, on=keys, suffixes=("_on", "_off"))
+    both = an.side_by_side(df, "stabilization",
+                           ["solver", *CONFIG, *SHIFT, "l0", "reynolds", "end_time", "cfl"])
     return an.sort_models(both, ["gradient", "l0"]) if not both.empty else both
 
 
@@ -204,11 +199,10 @@ def _shifting_findings(df: pd.DataFrame) -> list[str]:
         return []
     cell = an.select(df, **RECOMMENDED, stabilization=False, shifting_coefficient=1.0)
     keys = [k for k in ("solver", "n", "reynolds", "end_time", "cfl") if k in cell.columns]
-    on = cell[cell["shifting"].astype(bool)]
-    off = cell[~cell["shifting"].astype(bool)]
-    both = on.merge(off, on=keys, suffixes=("_on", "_off")).sort_values(keys)
+    both = an.side_by_side(cell, "shifting", keys)
     if both.empty:
         return []
+    both = both.sort_values(keys)
     parts = [f"N = {int(r['n'])}: {an.pct(r['velocity_error_on'])} with, "
              f"{an.pct(r['velocity_error_off'])} without (disorder "
              f"{float(r['disorder_on']):.3f} and {float(r['disorder_off']):.3f} l0)"
