@@ -199,6 +199,24 @@ def test_couette_start_up_agrees(wall_velocity, lname, wname):
 # --------------------------------------------------------------------------- dam break
 
 
+@pytest.mark.parametrize("wall", ["dummy", "moving"])
+def test_static_number_density_is_the_reference_s(wall):
+    """The number density of the pairs inside a rigid group (summed once at set-up, numpy in
+    the numba backend) is the reference's, particle by particle: a tank of dummy walls, and the
+    Couette case's channel, whose top plate moves (a rigid group of its own)."""
+    if wall == "dummy":
+        problem = problems.column_in_tank_problem()
+    else:
+        from mpsbench.cases import get_case
+
+        couette = get_case("couette")
+        problem = couette.build({p.name: p.default for p in couette.params})[0]
+    ref, nb = advance("reference", problem, 0), advance("numba", problem, 0)
+    assert len(np.unique(nb.group[nb.group >= 0])) == (1 if wall == "dummy" else 2)
+    assert np.count_nonzero(ref.neigh.static_n) > 0.1 * problem.particles.n  # not a vacuous test
+    np.testing.assert_allclose(nb.static_n, ref.neigh.static_n, rtol=1e-12, atol=0.0)
+
+
 @pytest.fixture(scope="module")
 def dam_break_pair():
     def build() -> Problem:

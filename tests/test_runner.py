@@ -109,6 +109,13 @@ def test_bad_stopping_rules_raise(kwargs: dict[str, Any]) -> None:
         run(ToySolver(), toy_problem(), **kwargs)
 
 
+def test_a_problem_that_is_not_a_problem_is_named() -> None:
+    """A case's build() returning (problem, extra) handed to run() as it is: a TypeError that
+    says what was given, not an AttributeError from deep inside the runner."""
+    with pytest.raises(TypeError, match="not tuple"):
+        run(ToySolver(), (toy_problem(), None), max_steps=1)  # type: ignore[arg-type]
+
+
 # --------------------------------------------------------------------------- probes
 
 

@@ -180,11 +180,13 @@ def test_health_of_both_backends_agrees_and_sees_trouble() -> None:
         s.setup(dataclasses.replace(problem, particles=p))
         h = s.health(0.05)
         assert (h.finite, h.max_fluid_speed, h.fluid_outside) == (True, 50.0, 1), name
-        p = p.copy()
-        p.pressure[3] = np.nan
-        s = make_solver(name)
-        s.setup(dataclasses.replace(problem, particles=p))
-        assert not s.health(0.05).finite, name
+        wall = int(np.flatnonzero(p.kind != 0)[0])
+        for column, value in (("pressure", np.nan), ("vel", np.inf), ("vel", -np.inf)):
+            bad = p.copy()
+            getattr(bad, column)[wall] = value  # one value of one wall particle
+            s = make_solver(name)
+            s.setup(dataclasses.replace(problem, particles=bad))
+            assert not s.health(0.05).finite, (name, column, value)
 
 
 def test_a_solver_without_health_still_runs() -> None:

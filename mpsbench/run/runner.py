@@ -210,6 +210,9 @@ def _run(
     deadline: float | None,
     ctx: TaskContext | None,
 ) -> RunResult:
+    if not isinstance(problem, Problem):
+        raise TypeError(f"run: problem must be a mpsbench.run.protocol.Problem, not "
+                        f"{type(problem).__name__} (a case's build() may return more than one)")
     if end_time is None and max_steps is None:
         raise ValueError("run: give end_time or max_steps (or both)")
     if end_time is not None and not (math.isfinite(end_time) and end_time > 0):

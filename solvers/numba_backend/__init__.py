@@ -21,7 +21,7 @@ the install command, so the solver registry lists ``numba`` as unavailable with 
   updates that follow it, rows computed by their own particle (no per-thread accumulators).
 * :mod:`.layout`: with ``sort=true``, the particles sorted along a Z curve at each neighbour
   rebuild (locality), and the ids that give the caller the problem's order back.
-* :mod:`.steps`: the equation of state, the static number density, the health summary, the
+* :mod:`.steps`: the equation of state, the health summary, the
   diffusion operator as per-entry coefficients.
 * :mod:`.mirror`: the ``mirror`` wall velocities (kernel-weighted linear fit at mirror points).
 * :mod:`.timing`: ``python -m mpsbench.solvers.numba_backend.timing`` times one pass of the row

@@ -58,7 +58,7 @@ parallel build of a kernel compile the same loop and agree bit for bit
 Without ``reassoc`` a neighbour sum keeps its order, so its loop stays scalar: each neighbour's
 coordinates are two plain loads.  :data:`VECTOR_FLAGS` adds ``reassoc``: LLVM then splits the
 sums into vector lanes and loads the neighbours with gather instructions.  The solver builds
-with :data:`VECTOR_FLAGS` unless its option ``vectorize`` is false (:func:`vectorized`).
+with :data:`VECTOR_FLAGS` unless its option ``vectorize`` is false (:func:`set_vectorized`).
 Whether the vector loops pay depends on the processor's gathers: an earlier machine of this
 project measured them 1.3-1.6x faster, the machine of 2026-12-07 0.65-0.74x the scalar ones
 (docs/performance.md); ``mpsbench bench --solver numba --solver numba:vectorize=false``
@@ -104,25 +104,32 @@ def pick(fn: Any, serial: bool) -> Any:
     return fn.serial if serial else fn
 
 
-_vector = False  # the flags factories build with now (:func:`vectorized`; the solver sets them)
+_vector = False  # the flags factories build with now (:func:`set_vectorized`; the solver sets them)
+
+
+def set_vectorized(on: bool) -> bool:
+    """Make :func:`factory` kernels the builds with :data:`VECTOR_FLAGS` (``on``) or
+    :data:`FLAGS` from now on; returns the setting before (for the caller to restore)."""
+    global _vector
+    before, _vector = _vector, bool(on)
+    return before
 
 
 @contextmanager
 def vectorized(on: bool) -> Iterator[None]:
     """Inside the block, :func:`factory` kernels are the builds with :data:`VECTOR_FLAGS`
     (``on``) or :data:`FLAGS`; the caller's setting is restored after it."""
-    global _vector
-    before, _vector = _vector, bool(on)
+    before = set_vectorized(on)
     try:
         yield
     finally:
-        _vector = before
+        set_vectorized(before)
 
 
 def factory(build: Callable[..., Any]) -> Callable[..., Any]:
     """A memoised kernel factory: ``build(*models)`` returns the Python function of a kernel
     (closing over compiled formulas); the result is ``kernel(...)`` of it, once per arguments
-    and flag set (:func:`vectorized`)."""
+    and flag set (:func:`set_vectorized`)."""
     made: dict[tuple[Any, ...], Any] = {}
 
     def get(*models: Any) -> Any:

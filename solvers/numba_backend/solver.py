@@ -30,8 +30,6 @@ from __future__ import annotations
 
 import multiprocessing
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import Any
 
 import numba
@@ -48,7 +46,7 @@ from mpsbench.run.protocol import Capabilities, Health, Problem
 from mpsbench.run.scheme import SCHEME_BOUNDARIES, SCHEME_FEATURES, EquationOfState, SchemeSolver
 
 from . import formulas, fused, kernels, steps
-from ._jit import report, vectorized, watch_compiles
+from ._jit import report, set_vectorized, watch_compiles
 from .cells import CSRNeighbours, build_csr
 from .geometry import box_period
 from .layout import Birth, morton_order
@@ -58,25 +56,35 @@ from .neighbour_list import CellNeighbourList
 FloatArray = NDArray[np.float64]
 
 
-@contextmanager
-def _threads(k: int) -> Iterator[None]:
-    """Run the block with ``k`` numba threads, then restore the caller's setting.
+class _RunContext:
+    """A run's numba threads and kernel flags around a block, the caller's restored after it.
 
-    With one thread the serial kernel builds run and the threading layer is left alone (it
-    is not even started: a forked worker process must not touch OpenMP, see :mod:`._jit`).
+    A class rather than a generator context: it is entered around every step, and a
+    generator-based context costs about 1 us, a tenth of a small diffusion step (400
+    particles).  With one thread the serial kernel builds run and the threading layer is left
+    alone (it is not even started: a forked worker process must not touch OpenMP, see
+    :mod:`._jit`).
     """
-    if k == 1:
-        yield
-        return
-    before = numba.get_num_threads()
-    if before == k:
-        yield
-        return
-    numba.set_num_threads(k)
-    try:
-        yield
-    finally:
-        numba.set_num_threads(before)
+
+    __slots__ = ("threads", "vectorize", "_threads_before", "_vector_before")
+
+    def __init__(self, threads: int, vectorize: bool) -> None:
+        self.threads = threads
+        self.vectorize = vectorize
+        self._threads_before = threads
+        self._vector_before = vectorize
+
+    def __enter__(self) -> None:
+        self._vector_before = set_vectorized(self.vectorize)
+        if self.threads != 1:
+            self._threads_before = numba.get_num_threads()
+            if self._threads_before != self.threads:
+                numba.set_num_threads(self.threads)
+
+    def __exit__(self, *exc: object) -> None:
+        if self.threads != 1 and self._threads_before != self.threads:
+            numba.set_num_threads(self._threads_before)
+        set_vectorized(self._vector_before)
 
 
 class NumbaSolver(SchemeSolver):
@@ -119,11 +127,9 @@ class NumbaSolver(SchemeSolver):
         self._watched: list[Any] = []
         self.compile_times: dict[str, float] = {}  # kernel -> seconds compiling (cache misses)
 
-    @contextmanager
-    def _compiled(self) -> Iterator[None]:
-        """This run's numba threads and kernel flags (:func:`._jit.vectorized`)."""
-        with _threads(self.threads), vectorized(self.vectorize):
-            yield
+    def _compiled(self) -> _RunContext:
+        """This run's numba threads and kernel flags (:func:`._jit.set_vectorized`)."""
+        return _RunContext(self.threads, self.vectorize)
 
     def _k(self, fn: Any) -> Any:
         """The build of a compiled kernel for this run: serial on one thread (:mod:`._jit`)."""
@@ -143,6 +149,11 @@ class NumbaSolver(SchemeSolver):
         with self._compiled(), watch_compiles() as watch:
             super().setup(problem)
         self.timings["setup_s"] = time.perf_counter() - t0
+        box = problem.box
+        # what health() hands its kernel after every step, made once
+        self._health_box = (np.asarray(box.lo, np.float64), np.asarray(box.hi, np.float64),
+                            np.array([not a for a in box.periodic]))
+        self._field_name = getattr(problem.physics, "field_name", None)
         self._watched = [watch]  # the first step compiles the step's kernels: watched too
 
     def step(self, dt: float) -> None:
@@ -291,12 +302,27 @@ class NumbaSolver(SchemeSolver):
         self.neigh.set_static(group=self.group, loose=self.loose)
         self.static_n = np.zeros(p.n)
         if solid.any():
-            pos = np.ascontiguousarray(p.pos)
-            csr = self._full_list(self.re)
-            self._k(steps.static_density(self.fm.weight))(
-                csr.offsets, csr.nbr, pos, self.period, self.re, self.group, self.loose,
-                self.static_n,
-            )
+            self.static_n = self._static_density(self._full_list(self.re))
+
+    def _static_density(self, csr: CSRNeighbours) -> FloatArray:
+        """sum_j W_ij over each particle's static pairs (same rigid group, not both loose).
+
+        numpy with the weight's own vectorised formula, once per set-up: a compiled kernel
+        cost 0.6 s of a cold start for a sum that takes milliseconds here.  Entries are summed
+        row by row in list order, as a row loop would."""
+        rows = csr.rows()
+        nbr = csr.nbr.astype(np.int64)
+        g = self.group
+        static = (g[rows] >= 0) & (g[nbr] == g[rows]) & ~(self.loose[rows] & self.loose[nbr])
+        i, j = rows[static], nbr[static]
+        d = self.p.pos[j] - self.p.pos[i]
+        self.box.minimum_image(d)
+        r = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+        w = np.zeros(len(r))
+        apart = r > 0.0  # a coincident pair has no weight (and W(0) may divide by zero)
+        w[apart] = self.weight.w(r[apart], self.re)
+        # bincount with weights sums in float64 (numpy's stubs type it as integer)
+        return np.bincount(i, w, self.p.n).astype(np.float64)
 
     def _sort(self) -> None:
         """Permute every per-particle array along the Z curve of the current positions."""
@@ -484,15 +510,13 @@ class NumbaSolver(SchemeSolver):
         return super()._max_speed()
 
     def health(self, margin: float) -> Health:
-        assert self.problem is not None
-        p, box = self.p, self.box
-        name = getattr(self.problem.physics, "field_name", None)
-        field = p.fields[name] if name is not None else _NO_FIELD
-        X, V = (self._X, self._V) if hasattr(self, "birth") else (p.pos.T, p.vel.T)
+        p = self.p
+        name = self._field_name
+        field = _NO_FIELD if name is None else np.ascontiguousarray(p.fields[name], np.float64)
+        X, V = (p.pos.T, p.vel.T) if name is not None else (self._X, self._V)
+        lo, hi, free_axis = self._health_box
         finite, speed, outside, fmax = steps.health(
-            X, V, p.pressure, p.kind, np.asarray(box.lo, np.float64),
-            np.asarray(box.hi, np.float64), np.array([not a for a in box.periodic]),
-            float(margin), np.ascontiguousarray(field, dtype=np.float64),
+            X, V, p.pressure, p.kind, lo, hi, free_axis, float(margin), field
         )
         return Health(bool(finite), float(speed), int(outside), float(fmax))
 
