@@ -189,6 +189,14 @@ def test_health_of_both_backends_agrees_and_sees_trouble() -> None:
             assert not s.health(0.05).finite, (name, column, value)
 
 
+@pytest.mark.parametrize("name", ["reference", "numba"])
+def test_health_before_setup_says_so(name: str) -> None:
+    if name == "numba":
+        pytest.importorskip("numba")
+    with pytest.raises(RuntimeError, match="before health"):
+        make_solver(name).health(0.05)
+
+
 def test_a_solver_without_health_still_runs() -> None:
     """A backend that predates health() (no SolverBase): the runner checks its state."""
 

@@ -344,7 +344,8 @@ class SolverBase:
         return self.state().n
 
     def health(self, margin: float) -> Health:
-        assert self.problem is not None
+        if self.problem is None:
+            raise RuntimeError(f"{self.name}: call setup(problem) before health()")
         return health_of(self.state(), self.problem.box, margin,
                          getattr(self.problem.physics, "field_name", None))
 

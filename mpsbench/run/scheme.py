@@ -311,7 +311,8 @@ class SchemeSolver(SolverBase):
 
     def health(self, margin: float) -> Health:
         """The runner's per-step check, from the particle arrays themselves (numpy)."""
-        assert self.problem is not None
+        if self.problem is None:
+            raise RuntimeError(f"{self.name}: call setup(problem) before health()")
         return health_of(self.p, self.box, margin,
                          getattr(self.problem.physics, "field_name", None))
 

@@ -510,6 +510,8 @@ class NumbaSolver(SchemeSolver):
         return super()._max_speed()
 
     def health(self, margin: float) -> Health:
+        if self.problem is None:
+            raise RuntimeError(f"{self.name}: call setup(problem) before health()")
         p = self.p
         name = self._field_name
         field = _NO_FIELD if name is None else np.ascontiguousarray(p.fields[name], np.float64)
