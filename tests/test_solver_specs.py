@@ -190,11 +190,13 @@ def test_health_of_both_backends_agrees_and_sees_trouble() -> None:
 
 
 @pytest.mark.parametrize("name", ["reference", "numba"])
-def test_health_before_setup_says_so(name: str) -> None:
+def test_health_or_step_before_setup_says_so(name: str) -> None:
     if name == "numba":
         pytest.importorskip("numba")
-    with pytest.raises(RuntimeError, match="before health"):
+    with pytest.raises(RuntimeError, match=rf"^{name}: call setup\(problem\) before health"):
         make_solver(name).health(0.05)
+    with pytest.raises(RuntimeError, match=rf"^{name}: call setup\(problem\) before step"):
+        make_solver(name).step(0.01)
 
 
 def test_a_solver_without_health_still_runs() -> None:

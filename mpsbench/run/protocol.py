@@ -331,9 +331,14 @@ class SolverBase:
         self._setup(problem)
         self.status = Status.RUNNING
 
-    def step(self, dt: float) -> None:
+    def _require_setup(self, call: str) -> Problem:
+        """The problem :meth:`setup` took; before it, a RuntimeError that names ``call``."""
         if self.problem is None:
-            raise RuntimeError(f"{self.name}: call setup(problem) before step()")
+            raise RuntimeError(f"{self.name}: call setup(problem) before {call}")
+        return self.problem
+
+    def step(self, dt: float) -> None:
+        self._require_setup("step()")
         self._advance(dt)
         self.time += dt
         self.n_steps += 1
@@ -344,10 +349,9 @@ class SolverBase:
         return self.state().n
 
     def health(self, margin: float) -> Health:
-        if self.problem is None:
-            raise RuntimeError(f"{self.name}: call setup(problem) before health()")
-        return health_of(self.state(), self.problem.box, margin,
-                         getattr(self.problem.physics, "field_name", None))
+        problem = self._require_setup("health()")
+        return health_of(self.state(), problem.box, margin,
+                         getattr(problem.physics, "field_name", None))
 
     def diagnostics(self) -> dict[str, Any]:
         return {}

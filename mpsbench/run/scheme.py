@@ -311,10 +311,8 @@ class SchemeSolver(SolverBase):
 
     def health(self, margin: float) -> Health:
         """The runner's per-step check, from the particle arrays themselves (numpy)."""
-        if self.problem is None:
-            raise RuntimeError(f"{self.name}: call setup(problem) before health()")
-        return health_of(self.p, self.box, margin,
-                         getattr(self.problem.physics, "field_name", None))
+        problem = self._require_setup("health()")
+        return health_of(self.p, self.box, margin, getattr(problem.physics, "field_name", None))
 
     def _max_speed(self) -> float:
         """max_i |u_i| over every particle (moving walls and inflow included)."""

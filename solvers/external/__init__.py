@@ -259,8 +259,7 @@ class ExternalSolver(SolverBase):
 
     def step(self, dt: float) -> None:
         """One advance; the step count and particle-steps are the program's own."""
-        if self.problem is None:
-            raise RuntimeError(f"{self.name}: call setup(problem) before step()")
+        self._require_setup("step()")
         self._advance(dt)
         self.time += dt
         self.n_steps = self.program_steps

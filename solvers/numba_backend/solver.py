@@ -40,6 +40,7 @@ from mpsbench.params import Option
 from mpsbench.physics import operators as ops
 from mpsbench.physics.boundaries import carry
 from mpsbench.physics.config import DiffusionPhysics, FlowPhysics
+from mpsbench.physics.neighbours import PairList
 from mpsbench.physics.operators import DIM, SHIFTING
 from mpsbench.physics.particles import Kind, Particles
 from mpsbench.run.protocol import Capabilities, Health, Problem
@@ -314,15 +315,15 @@ class NumbaSolver(SchemeSolver):
         nbr = csr.nbr.astype(np.int64)
         g = self.group
         static = (g[rows] >= 0) & (g[nbr] == g[rows]) & ~(self.loose[rows] & self.loose[nbr])
-        i, j = rows[static], nbr[static]
-        d = self.p.pos[j] - self.p.pos[i]
-        self.box.minimum_image(d)
-        r = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+        pairs = PairList(rows[static], nbr[static], np.empty((0, 2)), np.empty(0), self.p.n,
+                         self.re)
+        pairs.refresh(self.p.pos, self.box)  # dx and r as the reference computes them
+        r = pairs.r
         w = np.zeros(len(r))
         apart = r > 0.0  # a coincident pair has no weight (and W(0) may divide by zero)
         w[apart] = self.weight.w(r[apart], self.re)
         # bincount with weights sums in float64 (numpy's stubs type it as integer)
-        return np.bincount(i, w, self.p.n).astype(np.float64)
+        return np.bincount(pairs.i, w, self.p.n).astype(np.float64)
 
     def _sort(self) -> None:
         """Permute every per-particle array along the Z curve of the current positions."""
@@ -510,8 +511,7 @@ class NumbaSolver(SchemeSolver):
         return super()._max_speed()
 
     def health(self, margin: float) -> Health:
-        if self.problem is None:
-            raise RuntimeError(f"{self.name}: call setup(problem) before health()")
+        self._require_setup("health()")
         p = self.p
         name = self._field_name
         field = _NO_FIELD if name is None else np.ascontiguousarray(p.fields[name], np.float64)
