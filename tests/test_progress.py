@@ -68,6 +68,68 @@ def test_eta_follows_the_work_not_the_run_count(toys: object,
     assert line.startswith("[1/2     10s eta 1:30] completed r0 1.0s")
 
 
+def test_eta_prices_each_case_at_its_own_measured_rate(
+        toys: object, monkeypatch: pytest.MonkeyPatch) -> None:
+    now = [0.0]
+    monkeypatch.setattr("mpsbench.results.progress.time.perf_counter", lambda: now[0])
+    tasks = [Task(case, "reference", "quick", {"k": k}, f"{case}{k}")
+             for case in ("cheap", "dear") for k in range(3)]
+    p = Progress(tasks, stream=io.StringIO())
+    p.costs = {t.run_id: 100.0 for t in tasks}  # the same estimated work for every run
+    p.total_work = 600.0
+    now[0] = 10.0
+    # two runs at once: 20 s of run time in 10 s; a cheap run took 1 s, a dear one 19 s
+    p(1, 6, {"run_id": "cheap0", "case": "cheap", "status": "completed", "elapsed_s": 1.0,
+             "wall_time_s": 0.5}, False)
+    p(2, 6, {"run_id": "dear0", "case": "dear", "status": "completed", "elapsed_s": 19.0},
+      False)
+    # left: 2 cheap runs (2 s) and 2 dear ones (38 s) over 2 workers: 20 s; the old pricing
+    # (elapsed time per unit of work done, one rate for all) said 20 s too, but only by luck
+    # of this mix: see the next case
+    assert p.eta() == pytest.approx((2 * 1.0 + 2 * 19.0) * 10.0 / 20.0)
+    p(3, 6, {"run_id": "dear1", "case": "dear", "status": "completed", "elapsed_s": 19.0},
+      False)
+    p(4, 6, {"run_id": "dear2", "case": "dear", "status": "completed", "elapsed_s": 19.0},
+      False)
+    now[0] = 29.0
+    # only cheap runs are left: 2 s of run time at 58 / 29 = 2 at once, 1 s; one rate for
+    # all (29 s for 400 units) would say 14.5 s
+    assert p.eta() == pytest.approx(2 * 1.0 * 29.0 / 58.0)
+    # unknown while a case with runs left has finished none; a skipped run's record gives
+    # its case a rate but is no run time of this sweep
+    r = Progress(tasks, stream=io.StringIO())
+    r.costs = {t.run_id: 100.0 for t in tasks}
+    now[0] = 40.0
+    r(1, 6, {"run_id": "cheap0", "case": "cheap", "status": "completed", "elapsed_s": 1.0},
+      False)
+    assert r.eta() is None
+    r(2, 6, {"run_id": "dear0", "case": "dear", "status": "completed", "elapsed_s": 30.0},
+      True)
+    # 2 cheap runs at 1 s and 2 dear at 30 s: 62 s of runs, 1 s of them in 40 - 29 = 11 s
+    assert r.eta() == pytest.approx(62.0 * 11.0 / 1.0)
+    # a record without run times prices the work left by the elapsed time per work done
+    q = Progress(tasks[:2], stream=io.StringIO())
+    q.costs, q.total_work = {"cheap0": 1.0, "cheap1": 3.0}, 4.0
+    now[0] = 48.0
+    q(1, 2, {"run_id": "cheap0", "case": "cheap", "status": "completed"}, False)
+    assert q.eta() == pytest.approx(3.0 * (48.0 - 40.0) / 1.0)
+
+
+def test_the_median_run_of_every_case_and_solver_is_submitted_first() -> None:
+    from mpsbench.commands.validate import heavy_first
+
+    tasks = [Task(case, solver, "quick", {"i": i}, f"{case}-{solver}{i}")
+             for case, n in (("many", 3), ("few", 2)) for solver in ("a", "b")
+             for i in range(n)]
+    costs = {t.run_id: float(10 - int(t.run_id[-1])) for t in tasks}  # the last is cheapest
+    order = [t.run_id for t in heavy_first(tasks, costs)]
+    # "many": costs 10, 9, 8 -> the 9; "few": 10, 9 -> the lower median, the 9; the case with
+    # fewer runs still first
+    assert order[:4] == ["few-a1", "few-b1", "many-a1", "many-b1"]
+    assert order[4:] == ["few-a0", "few-b0", "many-a0", "many-a2", "many-b0", "many-b2"]
+    assert [t.run_id for t in heavy_first(tasks, {})] == [t.run_id for t in heavy_first(tasks)]
+
+
 def test_plain_lines_off_a_terminal_with_reasons(toys: object) -> None:
     out = io.StringIO()
     p = Progress(_tasks(3), stream=out)

@@ -5,6 +5,17 @@ The work of a run is its estimated cost, particles x time steps from ``Case.esti
 or 1 when none has), so the ETA follows the work done rather than the run count: a tier's many
 short runs and few long ones no longer make the count say nothing (issue 18).
 
+A particle-step does not cost the same in every case: one Laplacian sum in the diffusion case,
+half a dozen pair passes and neighbour rebuilds in a flow (the numba quick tier measured 0.04
+us per particle-step for diffusion, 0.3-1.2 us for the flows).  So the ETA prices the work left
+of each case and solver at that pair's own seconds per unit of work, measured on its finished
+runs (:meth:`Progress.eta`; a skipped run's record counts with the time of its earlier run),
+and divides by the concurrency seen so far (run seconds per elapsed second); the ETA is
+unknown ("?" on the bar, left out of a plain line) until every pair with runs left has
+finished one.  ``mpsbench validate`` submits a run of median work of every case and solver
+first (:func:`mpsbench.commands.validate.heavy_first`), so every rate is known within the
+first seconds.
+
 Three modes:
 
 * on a terminal (a TTY), an overall bar drawn with tqdm: runs done / planned, the share of the
@@ -52,6 +63,16 @@ def task_costs(tasks: Sequence[Task]) -> dict[str, float]:
     return {t.run_id: known.get(t.run_id, mean) for t in tasks}
 
 
+def _run_seconds(record: dict[str, Any]) -> float | None:
+    """How long a finished run kept its worker: ``elapsed_s`` (building the problem, the
+    solver runs and the analysis), else ``wall_time_s``; None when the record has neither."""
+    for name in ("elapsed_s", "wall_time_s"):
+        value = record.get(name)
+        if isinstance(value, (int, float)) and value >= 0 and value == value:
+            return float(value)
+    return None
+
+
 def short_label(record: dict[str, Any], width: int = 48) -> str:
     """A run's id without its case, solver and hash, cut to ``width`` characters."""
     rid = str(record.get("run_id", "?"))
@@ -79,6 +100,11 @@ class Progress:
         self.total_work = sum(self.costs.values()) or 1.0
         self.work_done = 0.0  # of runs that ran now (skipped ones are not timed)
         self.work_skipped = 0.0
+        self.pending = {t.run_id: (t.case, t.solver) for t in tasks}  # not finished yet
+        self.finished: set[tuple[str, str]] = set()  # case and solver pairs with a run done
+        self.seconds: dict[tuple[str, str], float] = {}  # run time of their timed runs
+        self.timed_work: dict[tuple[str, str], float] = {}  # and those runs' work
+        self.busy = 0.0  # run time of the runs run now (not skipped)
         self.t0 = time.perf_counter()
         tty = bool(getattr(self.stream, "isatty", lambda: False)())
         self.mode = mode if mode in ("quiet", "verbose") else ("bar" if tty else "plain")
@@ -100,21 +126,43 @@ class Progress:
         self._drawn = -1.0
 
     def eta(self) -> float | None:
-        """Seconds left at the rate of the work done so far (None before any run finished)."""
+        """Seconds left: the work left of each case and solver at its own measured seconds
+        per unit of work, over the concurrency seen so far (the run seconds of this sweep per
+        elapsed second).  None before any run finished, and while a case and solver that has
+        runs left has not finished one (their first runs go first); a case and solver whose
+        runs carry no run time is priced at the rate of all the others, and without any run
+        times the work left goes at the elapsed time per unit of work done."""
         elapsed = time.perf_counter() - self.t0
         if self.work_done <= 0:
             return None
-        left = self.total_work - self.work_done - self.work_skipped
-        return max(0.0, left) * elapsed / self.work_done
+        timed = sum(self.timed_work.values())
+        if self.busy <= 0 or timed <= 0:
+            left = self.total_work - self.work_done - self.work_skipped
+            return max(0.0, left) * elapsed / self.work_done
+        if any(key not in self.finished for key in self.pending.values()):
+            return None
+        overall = sum(self.seconds.values()) / timed
+        rate = {key: self.seconds[key] / work for key, work in self.timed_work.items()}
+        run_seconds = sum(self.costs.get(rid, 0.0) * rate.get(key, overall)
+                          for rid, key in self.pending.items())
+        return run_seconds * elapsed / self.busy  # busy / elapsed: the runs going at once
 
     def __call__(self, done: int, total: int, record: dict[str, Any], skipped: bool) -> None:
         if self.mode == "quiet":
             return
-        work = self.costs.get(str(record.get("run_id")), 0.0)
+        rid = str(record.get("run_id"))
+        work = self.costs.get(rid, 0.0)
+        key = self.pending.pop(rid, (str(record.get("case", "")), str(record.get("solver", ""))))
+        self.finished.add(key)
+        run_s = _run_seconds(record)
+        if run_s is not None and work > 0:  # a skipped run's record: its earlier run's time
+            self.seconds[key] = self.seconds.get(key, 0.0) + run_s
+            self.timed_work[key] = self.timed_work.get(key, 0.0) + work
         if skipped:
             self.work_skipped += work
         else:
             self.work_done += work
+            self.busy += run_s or 0.0
         elapsed = time.perf_counter() - self.t0
         eta = self.eta()
         state = "skip" if skipped else str(record.get("status", "?"))
