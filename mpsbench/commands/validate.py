@@ -364,8 +364,7 @@ def validate_one(args: argparse.Namespace, solvers: list[str]) -> int:
         executor = executor_for(args, jobs)
         progress = progress_for(args, tasks)
         try:
-            order = heavy_first(tasks, getattr(progress, "costs", None))  # one case: probes
-            records = run_tasks(order, out, jobs=jobs, force=args.force, progress=progress,
+            records = run_tasks(tasks, out, jobs=jobs, force=args.force, progress=progress,
                                 retry=frames_retry(retry_rule(args), frames, lambda r: out),
                                 executor=executor)
         finally:

@@ -12,9 +12,9 @@ of each case and solver at that pair's own seconds per unit of work, measured on
 runs (:meth:`Progress.eta`; a skipped run's record counts with the time of its earlier run),
 and divides by the concurrency seen so far (run seconds per elapsed second); the ETA is
 unknown ("?" on the bar, left out of a plain line) until every pair with runs left has
-finished one.  ``mpsbench validate`` submits a run of median work of every case and solver
+finished one.  ``mpsbench validate all`` submits a run of median work of every case and solver
 first (:func:`mpsbench.commands.validate.heavy_first`), so every rate is known within the
-first seconds.
+first seconds (one case runs in its plan's order).
 
 Three modes:
 
