@@ -535,12 +535,11 @@ def heavy_first(tasks: list[Task], costs: dict[str, float] | None = None) -> lis
     for t in order:
         if t.run_id in costs:
             groups.setdefault((t.case, t.solver), []).append(t)
-    first = set()
+    first: set[int] = set()
     for group in groups.values():
         group.sort(key=lambda t: costs[t.run_id])  # stable: of equal costs, the first
         first.add(id(group[(len(group) - 1) // 2]))
-    return ([t for t in order if id(t) in first]
-            + [t for t in order if id(t) not in first])
+    return sorted(order, key=lambda t: id(t) not in first)  # stable: the probes, then the rest
 
 
 def print_verdicts(sections: list[CaseSection]) -> None:

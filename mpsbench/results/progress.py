@@ -35,6 +35,7 @@ cluster's do not (only the overall bar moves).
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -68,7 +69,7 @@ def _run_seconds(record: dict[str, Any]) -> float | None:
     solver runs and the analysis), else ``wall_time_s``; None when the record has neither."""
     for name in ("elapsed_s", "wall_time_s"):
         value = record.get(name)
-        if isinstance(value, (int, float)) and value >= 0 and value == value:
+        if isinstance(value, (int, float)) and math.isfinite(value) and value >= 0:
             return float(value)
     return None
 
