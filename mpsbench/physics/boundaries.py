@@ -10,6 +10,7 @@ from scipy.spatial import cKDTree
 
 from mpsbench.physics.config import Inflow, Region
 from mpsbench.physics.particles import Box, Kind, Particles
+from mpsbench.physics.powers import whole_power
 from mpsbench.physics.weights import WeightFunction
 
 FloatArray = NDArray[np.float64]
@@ -198,7 +199,7 @@ def _linear_fit(
     out[has] = rhs[has, 0, :] / den[has, None]  # Shepard average (zeroth order)
     # the linear fit where the moment matrix is well conditioned
     det = np.linalg.det(moment)
-    scale = np.where(has, den, 1.0) ** 3
+    scale = whole_power(np.where(has, den, 1.0), 3)
     good = has & (count >= 3) & (np.abs(det) > 1e-8 * scale)
     if good.any():
         coef = np.linalg.solve(moment[good], rhs[good])

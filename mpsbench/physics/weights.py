@@ -3,7 +3,9 @@
 A weighting function is one subclass of :class:`WeightFunction` plus one ``WEIGHTS.register``
 call (or an entry point in the ``mpsbench.weights`` group).  The subclass writes W, W' and W''
 for 0 < r <= r_e once, as static methods of ``(r, re)`` in plain arithmetic (numpy ufuncs that
-numba also compiles, such as ``np.exp``, are fine too): numpy evaluates the same code on arrays
+numba also compiles, such as ``np.exp``, work too, but numpy's ``exp``, ``log`` and ``power``
+round differently on different processors, so whole powers are written as products, see
+:mod:`mpsbench.physics.powers`): numpy evaluates the same code on arrays
 (the vectorised, masked :meth:`WeightFunction.w` / ``dw`` / ``d2w`` below, which the reference
 backend uses) and the numba backend compiles it into its kernels.  Every backend therefore uses
 the one definition, and a plugin's weight runs on all of them.
@@ -105,7 +107,7 @@ class WF1(WeightFunction):
 
     @staticmethod
     def d2w_inside(r: Any, re: float) -> Any:
-        return 2.0 * re / r**3
+        return 2.0 * re / (r * r * r)
 
 
 class WF2(WeightFunction):
@@ -117,7 +119,8 @@ class WF2(WeightFunction):
 
     @staticmethod
     def w_inside(r: Any, re: float) -> Any:
-        return (1.0 - r / re) ** 3
+        t = 1.0 - r / re
+        return t * t * t
 
     @staticmethod
     def dw_inside(r: Any, re: float) -> Any:

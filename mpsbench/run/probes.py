@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
 from mpsbench.physics.particles import Kind, Particles
+from mpsbench.physics.powers import whole_power
 
 FloatArray = NDArray[np.float64]
 
@@ -94,7 +95,7 @@ def kernel_average(
         cKDTree(points, boxsize=boxsize), radius, output_type="coo_matrix"
     )
     # (the coo output keeps exact zeros, so coincident points are counted)
-    w = (1.0 - sdm.data / radius) ** 3
+    w = whole_power(1.0 - sdm.data / radius, 3)
     den = np.bincount(sdm.col, w, len(points))
     ok = den > 0
     out = np.full(shape, np.nan)

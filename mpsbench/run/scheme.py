@@ -72,6 +72,7 @@ from mpsbench.physics.operators import (
     number_density,
 )
 from mpsbench.physics.particles import Box, Kind, Particles
+from mpsbench.physics.powers import power
 from mpsbench.physics.weights import WeightFunction, get_weight
 from mpsbench.run.protocol import Capabilities, Health, Problem, SolverBase, health_of
 
@@ -111,7 +112,8 @@ class EquationOfState:
         """(pressure, free-surface flags) of number densities ``n`` (numpy)."""
         ratio = n / self.n0
         if self.tait:
-            pres = self.prefactor * (ratio**self.gamma - 1.0)
+            # whole_power, not ratio**gamma: numpy's power rounds differently per processor
+            pres = self.prefactor * (power(ratio, self.gamma) - 1.0)
         else:
             pres = self.prefactor * (ratio - 1.0)
         if self.clip:

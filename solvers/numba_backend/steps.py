@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 from numba import njit, prange
 
+from mpsbench.physics.powers import whole_exponent, whole_power
+
 from . import formulas as fm
 from ._jit import compiled, factory, kernel
 from .formulas import DUMMY, FLUID, RADIAL, SUPPORT, inside
@@ -25,30 +27,21 @@ from .geometry import pos_sep as sep
 # --------------------------------------------------------------------------- equation of state
 
 
+_whole_power = njit(inline="always")(whole_power)
+integer_gamma = njit(inline="always")(whole_exponent)
+"""The ``igamma`` of :func:`power`: gamma when it is a whole number 1..16, else 0 (the core's
+:func:`~mpsbench.physics.powers.whole_exponent`, hoisted out of the loops by the kernels)."""
+
+
 @njit(inline="always")
 def power(x, gamma, igamma):
-    """x**gamma; by repeated squaring when gamma is a whole number 1..16 (``igamma`` > 0).
-
-    pow() costs about as much as a dozen neighbour terms; squaring is a few multiplications
-    and differs from it by a few ulp (Tait's gamma = 7: x * x^2 * x^4).
-    """
+    """x**gamma: the core's :func:`~mpsbench.physics.powers.whole_power` when gamma is a whole
+    number 1..16 (``igamma`` > 0), the same multiplications as the reference backend's equation
+    of state (so the bits do not depend on the processor); pow() otherwise.  pow() also costs
+    about as much as a dozen neighbour terms."""
     if igamma == 0:
         return x**gamma
-    result = 1.0
-    base = x
-    e = igamma
-    while e > 0:
-        if e & 1:
-            result *= base
-        base *= base
-        e >>= 1
-    return result
-
-
-@njit(inline="always")
-def integer_gamma(gamma):
-    """The ``igamma`` of :func:`power`: gamma when it is a whole number 1..16, else 0."""
-    return int(gamma) if gamma == np.floor(gamma) and 1.0 <= gamma <= 16.0 else 0
+    return _whole_power(x, igamma)
 
 
 @njit(inline="always")

@@ -25,6 +25,7 @@ from scipy.spatial import cKDTree
 
 from mpsbench.physics.neighbours import build_pairs
 from mpsbench.physics.particles import Kind
+from mpsbench.physics.powers import whole_power
 from mpsbench.physics.weights import get_weight
 
 FloatArray = NDArray[np.float64]
@@ -78,7 +79,7 @@ def pressure_deviation(
     particles that had at least one neighbour (the deviation is 0 elsewhere).
     """
     pairs = build_pairs(pos, radius)
-    w = (1.0 - np.minimum(pairs.r / radius, 1.0)) ** 3
+    w = whole_power(1.0 - np.minimum(pairs.r / radius, 1.0), 3)
     wi = w * carries[pairs.j]  # weight of j in the mean of i
     wj = w * carries[pairs.i]  # weight of i in the mean of j
     n = len(pos)
