@@ -571,3 +571,19 @@ def test_compile_watch_counts_compilations_not_calls_of_compiled_code():
     with watch_compiles() as again:
         assert plus_one(2) == 3
     assert again.kernels == 0 and again.seconds == 0.0
+
+
+def test_the_compile_time_is_a_counter_and_a_record_column():
+    """validate's ETA leaves a record's compile_s out of its case's rate (results/progress.py)."""
+    from mpsbench.solvers.numba_backend import NumbaSolver
+
+    from mpsbench.results.records import solver_counters
+    from mpsbench.run.runner import run
+    from mpsbench.testing import problems
+
+    solver = NumbaSolver(threads=1)
+    result = run(solver, problems.dam_break_problem(l0=0.02), max_steps=2)
+    assert result.ok, result.reason
+    assert result.counters["compile_s"] == solver.timings["jit_compile_s"] >= 0.0
+    assert solver_counters([result, result])["compile_s"] == pytest.approx(
+        2 * solver.timings["jit_compile_s"], abs=1e-6)

@@ -115,6 +115,34 @@ def test_eta_prices_each_case_at_its_own_measured_rate(
     assert q.eta() == pytest.approx(3.0 * (48.0 - 40.0) / 1.0)
 
 
+def test_eta_leaves_compilation_out_of_a_cases_rate(
+        toys: object, monkeypatch: pytest.MonkeyPatch) -> None:
+    now = [0.0]
+    monkeypatch.setattr("mpsbench.results.progress.time.perf_counter", lambda: now[0])
+    tasks = [Task("flow", "numba", "quick", {"k": k}, f"flow{k}") for k in range(5)]
+    p = Progress(tasks, stream=io.StringIO())
+    p.costs = {t.run_id: 100.0 for t in tasks}
+    p.total_work = 500.0
+    now[0] = 8.0
+    # the first run took 8 s, 6 of them compiling kernels (a cold cache), one worker
+    p(1, 5, {"run_id": "flow0", "case": "flow", "status": "completed", "elapsed_s": 8.0,
+             "compile_s": 6.0}, False)
+    # four runs left at 2 s each (not 8), one at a time (8 s of runs in 8 s, compiling
+    # included)
+    assert p.eta() == pytest.approx(4 * 2.0)
+    # a record whose compile time is missing, not finite or larger than its run time
+    q = Progress(tasks, stream=io.StringIO())
+    q.costs = p.costs
+    now[0] = 16.0  # 8 s after q started
+    q(1, 5, {"run_id": "flow0", "case": "flow", "status": "completed", "elapsed_s": 8.0,
+             "compile_s": float("nan")}, False)
+    assert q.eta() == pytest.approx(4 * 8.0)
+    q(2, 5, {"run_id": "flow1", "case": "flow", "status": "completed", "elapsed_s": 8.0,
+             "compile_s": 20.0}, False)
+    # 8 s of rate time for 200 units, 16 s busy in 8 s elapsed: 3 runs x 4 s / 2
+    assert q.eta() == pytest.approx(3 * 4.0 * 8.0 / 16.0)
+
+
 def test_the_median_run_of_every_case_and_solver_is_submitted_first() -> None:
     from mpsbench.commands.validate import heavy_first
 

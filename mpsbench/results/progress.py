@@ -10,7 +10,10 @@ half a dozen pair passes and neighbour rebuilds in a flow (the numba quick tier 
 us per particle-step for diffusion, 0.3-1.2 us for the flows).  So the ETA prices the work left
 of each case and solver at that pair's own seconds per unit of work, measured on its finished
 runs (:meth:`Progress.eta`; a skipped run's record counts with the time of its earlier run),
-and divides by the concurrency seen so far (run seconds per elapsed second); the ETA is
+less the seconds its backend spent compiling (the record's ``compile_s``: numba's kernels on a
+cold cache, once per worker process, would otherwise price a case's every run as if it compiled
+again; compilations still to come are not foreseen), and divides by the concurrency seen so
+far (run seconds per elapsed second, compiling included); the ETA is
 unknown ("?" on the bar, left out of a plain line) until every pair with runs left has
 finished one.  ``mpsbench validate all`` submits a run of median work of every case and solver
 first (:func:`mpsbench.commands.validate.heavy_first`), so every rate is known within the
@@ -68,10 +71,15 @@ def _run_seconds(record: dict[str, Any]) -> float | None:
     """How long a finished run kept its worker: ``elapsed_s`` (building the problem, the
     solver runs and the analysis), else ``wall_time_s``; None when the record has neither."""
     for name in ("elapsed_s", "wall_time_s"):
-        value = record.get(name)
-        if isinstance(value, (int, float)) and math.isfinite(value) and value >= 0:
-            return float(value)
+        value = _seconds(record.get(name))
+        if value is not None:
+            return value
     return None
+
+
+def _seconds(value: Any) -> float | None:
+    ok = isinstance(value, (int, float)) and math.isfinite(value) and value >= 0
+    return float(value) if ok else None
 
 
 def short_label(record: dict[str, Any], width: int = 48) -> str:
@@ -157,7 +165,9 @@ class Progress:
         self.finished.add(key)
         run_s = _run_seconds(record)
         if run_s is not None and work > 0:  # a skipped run's record: its earlier run's time
-            self.seconds[key] = self.seconds.get(key, 0.0) + run_s
+            # compiling is once per worker process, not per unit of work: not in the rate
+            compiled = min(_seconds(record.get("compile_s")) or 0.0, run_s)
+            self.seconds[key] = self.seconds.get(key, 0.0) + run_s - compiled
             self.timed_work[key] = self.timed_work.get(key, 0.0) + work
         if skipped:
             self.work_skipped += work

@@ -304,6 +304,10 @@ SOLVER_COUNTER_PREFIX = "linear_"
 """Solver counters whose names start with this are record columns (the semi-implicit
 backend's linear solves, docs/columns.md): summed over the record's solver runs, or the largest
 when the name ends in ``_max``.  Backends without them add no columns."""
+SOLVER_COUNTER_COLUMNS = ("compile_s",)
+"""Solver counters that are record columns by their whole name, summed the same way:
+``compile_s``, seconds a backend spent compiling code for the run (numba's kernels on a cold
+cache, PySPH's generated extension), which the ETA of ``validate`` leaves out of a case's rate."""
 
 
 def solver_counters(results: Sequence[Any]) -> dict[str, float]:
@@ -311,7 +315,7 @@ def solver_counters(results: Sequence[Any]) -> dict[str, float]:
     out: dict[str, float] = {}
     for r in results:
         for name, value in getattr(r, "counters", {}).items():
-            if not name.startswith(SOLVER_COUNTER_PREFIX):
+            if not (name.startswith(SOLVER_COUNTER_PREFIX) or name in SOLVER_COUNTER_COLUMNS):
                 continue
             v = float(value)
             if name.endswith("_max"):
