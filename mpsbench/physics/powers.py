@@ -1,10 +1,11 @@
 """Whole-number powers as products of multiplications, so that they round alike on every machine.
 
 numpy picks the code of ``power``, ``exp`` and ``log`` for the processor when it is imported
-(numpy 2.4 on an AVX-512 machine uses SVML's vector routines; on an AVX2 machine, scalar C
-code) and the two differ in the last bit.  A weakly compressible run amplifies that bit: the
-reference backend's unstabilized water jet of the smoke tier ended with a density drift maximum
-of 0.400 on one instance and 0.540 on another, with the same code and numpy.  A product of IEEE
+(numpy 2.4 has AVX-512 versions of them that an AVX2 machine does not run), and the versions
+differ in the last bit (tests/test_powers.py switches the dispatch off to show it).  A weakly
+compressible run amplifies that bit: the reference backend's unstabilized water jet of the
+smoke tier ended with a density drift maximum of 0.400 on one instance and 0.540 on another,
+with the same code and numpy.  A product of IEEE
 multiplications rounds the same everywhere, so the models write whole powers with
 :func:`whole_power` (or as ``t * t * t``), and the numba backend compiles this same function, so
 both backends multiply in the same order.  Works on floats and numpy arrays alike.
