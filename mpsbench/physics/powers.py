@@ -5,10 +5,10 @@ numpy picks the code of ``power``, ``exp`` and ``log`` for the processor when it
 differ in the last bit (tests/test_powers.py switches the dispatch off to show it).  A weakly
 compressible run amplifies that bit: the reference backend's unstabilized water jet of the
 smoke tier ended with a density drift maximum of 0.400 on one instance and 0.540 on another,
-with the same code and numpy.  A product of IEEE
-multiplications rounds the same everywhere, so the models write whole powers with
-:func:`whole_power` (or as ``t * t * t``), and the numba backend compiles this same function, so
-both backends multiply in the same order.  Works on floats and numpy arrays alike.
+with the same code and numpy.  A product of IEEE multiplications rounds the same everywhere,
+so the models write whole powers with :func:`whole_power` (or as ``t * t * t``), and the numba
+backend compiles this same function, so both backends multiply in the same order.  Works on
+floats and numpy arrays alike.
 """
 
 from __future__ import annotations
