@@ -1,7 +1,7 @@
 """Whole powers as products (mpsbench.physics.powers): accuracy, the numba build's bits, and a
 reference run whose bits do not depend on the processor code numpy dispatches to.
 
-The processor test holds what found the problem: with numpy's ``power`` in the equation of
+The processor test guards against what the smoke gate met: with numpy's ``power`` in the equation of
 state, the smoke tier's unstabilized water jet ended with a density drift maximum of 0.400 with
 numpy's AVX-512 code and 0.540 with its AVX2 code, on one machine.
 """
