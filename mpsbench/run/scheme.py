@@ -112,7 +112,7 @@ class EquationOfState:
         """(pressure, free-surface flags) of number densities ``n`` (numpy)."""
         ratio = n / self.n0
         if self.tait:
-            # whole_power, not ratio**gamma: numpy's power rounds differently per processor
+            # products for a whole gamma (powers.power): numpy's power rounds per processor
             pres = self.prefactor * (power(ratio, self.gamma) - 1.0)
         else:
             pres = self.prefactor * (ratio - 1.0)
